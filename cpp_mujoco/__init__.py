@@ -1,0 +1,12 @@
+"""cpp_mujoco: UAV coverage path planning under power constraints, on a grid and in MuJoCo."""
+
+from gymnasium.envs.registration import register, registry
+
+__version__ = "0.1.0"
+
+if "cpp_mujoco/Grid-v0" not in registry:
+    register(
+        id="cpp_mujoco/Grid-v0",
+        entry_point="cpp_mujoco.grid.env:GridEnv",
+        vector_entry_point="cpp_mujoco.grid.vector_env:GridVectorEnv",
+    )

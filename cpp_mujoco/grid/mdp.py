@@ -1,0 +1,229 @@
+"""The grid MDP of the paper (DESIGN §3), for a batch of N environments held in arrays.
+
+This is the one implementation of the rules: the single :class:`~cpp_mujoco.grid.env.GridEnv` is
+a batch of one, the vector env a batch of many, evaluation and planners use it directly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from cpp_mujoco.grid.coverage import mark_seen, square_fov_masks
+from cpp_mujoco.grid.safety import NUM_ACTIONS, SafetyController
+from cpp_mujoco.grid.spaces import MAX_BUDGET
+from cpp_mujoco.maps import GridMap
+
+
+@dataclass(frozen=True)
+class Rewards:
+    """Reward components (paper §II-C); defaults are the design's."""
+
+    coverage: float = 0.4  # r_cov, per target cell seen for the first time
+    move: float = -0.2  # r_mov, every step (each step uses one budget unit)
+    safety: float = -1.0  # r_sc, per action the safety controller rejects
+    crash: float = -150.0  # r_crash, budget exhausted without having landed
+
+    def __call__(self, newly_seen: np.ndarray, rejected: np.ndarray, crashed: np.ndarray):
+        return self.coverage * newly_seen + self.move + self.safety * rejected + self.crash * crashed
+
+
+@dataclass(frozen=True)
+class GridConfig:
+    """Everything configurable about the grid MDP."""
+
+    fov_side: int = 3  # side of the square camera footprint, in cells, centred on the UAV
+    min_budget: int = 25  # initial movement budget is uniform over min..max (inclusive)
+    max_budget: int = 75
+    rewards: Rewards = field(default_factory=Rewards)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.rewards, dict):
+            object.__setattr__(self, "rewards", Rewards(**self.rewards))
+        if self.fov_side < 1:
+            raise ValueError(f"fov_side must be >= 1, got {self.fov_side}")
+        if not 1 <= self.min_budget <= self.max_budget <= MAX_BUDGET:
+            raise ValueError(f"need 1 <= min_budget <= max_budget, got {self.min_budget}..{self.max_budget}")
+
+    @classmethod
+    def from_kwargs(cls, config: GridConfig | None = None, **kwargs) -> GridConfig:
+        """A config from ``gymnasium.make`` keyword arguments; unknown keys are an error."""
+        names = {f.name for f in fields(cls)}
+        unknown = set(kwargs) - names
+        if unknown:
+            raise TypeError(f"unknown grid config option(s) {sorted(unknown)}; known: {sorted(names)}")
+        if config is None:
+            return cls(**kwargs)
+        return cls(**{**{n: getattr(config, n) for n in names}, **kwargs})
+
+
+@dataclass
+class StepOutcome:
+    """Per-environment results of one batched step (arrays of shape (N,))."""
+
+    reward: np.ndarray
+    terminated: np.ndarray
+    rejected: np.ndarray
+    crashed: np.ndarray
+    newly_seen: np.ndarray
+
+
+class GridMDP:
+    """N copies of the grid MDP. State lives in flat arrays; cells are indexed ``row * W + col``."""
+
+    def __init__(self, grid_map: GridMap, num_envs: int = 1, config: GridConfig | None = None):
+        if num_envs < 1:
+            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        self.map = grid_map
+        self.config = config or GridConfig()
+        self.num_envs = num_envs
+        self.height, self.width = grid_map.shape
+        self.safety = SafetyController(grid_map)
+        self.fov = square_fov_masks(grid_map, self.config.fov_side)
+        self.target = grid_map.target.reshape(-1)
+        self.num_targets = int(self.target.sum())
+        self.landing_cells = np.flatnonzero(grid_map.landing)
+        self.map_layers = grid_map.layers.astype(np.int8)
+        self.map_layers.flags.writeable = False
+        self._map_view = np.broadcast_to(self.map_layers, (num_envs, *self.map_layers.shape))
+        self._rows = np.arange(num_envs)
+
+        n, cells = num_envs, self.height * self.width
+        self.position = np.zeros(n, dtype=np.int64)
+        self.budget = np.zeros(n, dtype=np.int64)
+        self.coverage = np.zeros((n, cells), dtype=bool)
+        self.seen_targets = np.zeros(n, dtype=np.int64)
+        self.safety_flag = np.zeros(n, dtype=bool)
+        self.landed = np.zeros(n, dtype=bool)
+        self.crashed = np.zeros(n, dtype=bool)
+        self.rejected = np.zeros(n, dtype=bool)
+        self.steps = np.zeros(n, dtype=np.int64)
+
+    # ------------------------------------------------------------------ state transitions
+    @property
+    def done(self) -> np.ndarray:
+        return self.landed | (self.budget <= 0)
+
+    def reset(
+        self,
+        rng: np.random.Generator,
+        mask: np.ndarray | None = None,
+        start=None,
+        budget=None,
+    ) -> None:
+        """Reset the environments selected by ``mask`` (all if None).
+
+        ``start``: (row, col) or an array of them, each a landing cell; default uniform over the
+        landing cells. ``budget``: positive int(s); default uniform over min..max budget.
+        Random draws happen in this order (start, then budget) so any batch of the same seed
+        draws the same episodes.
+        """
+        idx = np.arange(self.num_envs) if mask is None else np.flatnonzero(mask)
+        k = idx.size
+        if start is None:
+            cells = self.landing_cells[rng.integers(self.landing_cells.size, size=k)]
+        else:
+            cells = self._start_cells(start, k)
+        if budget is None:
+            budgets = rng.integers(self.config.min_budget, self.config.max_budget + 1, size=k)
+        else:
+            budgets = np.broadcast_to(np.asarray(budget), (k,))
+            if not np.issubdtype(budgets.dtype, np.integer) or not (
+                (budgets >= 1) & (budgets <= MAX_BUDGET)
+            ).all():
+                raise ValueError(f"budget must be an integer in 1..{MAX_BUDGET}, got {budget!r}")
+        self.position[idx] = cells
+        self.budget[idx] = budgets
+        self.coverage[idx] = False
+        self.seen_targets[idx] = 0
+        self.safety_flag[idx] = False
+        self.landed[idx] = False
+        self.crashed[idx] = False
+        self.rejected[idx] = False
+        self.steps[idx] = 0
+
+    def _start_cells(self, start, k: int) -> np.ndarray:
+        rc = np.asarray(start)
+        if rc.shape == (2,):
+            rc = np.broadcast_to(rc, (k, 2))
+        if rc.shape != (k, 2) or not np.issubdtype(rc.dtype, np.integer):
+            raise ValueError(f"start must be an integer (row, col) or {k} of them, got {start!r}")
+        r, c = rc[:, 0], rc[:, 1]
+        inside = (r >= 0) & (r < self.height) & (c >= 0) & (c < self.width)
+        if not inside.all():
+            bad = tuple(int(v) for v in rc[~inside][0])
+            raise ValueError(f"start {bad} is outside the {self.height}x{self.width} grid")
+        cells = r * self.width + c
+        on_landing = self.map.landing.reshape(-1)[cells]
+        if not on_landing.all():
+            bad = tuple(int(v) for v in rc[~on_landing][0])
+            raise ValueError(f"start {bad} is not a landing cell of map {self.map.name!r}")
+        return cells
+
+    def step(self, actions: np.ndarray, active: np.ndarray | None = None) -> StepOutcome:
+        """Apply one action per environment (DESIGN §3 steps 1–6).
+
+        Environments not ``active`` (default: those already done) keep their state and get
+        reward 0 and ``terminated`` as it was.
+        """
+        actions = np.asarray(actions, dtype=np.int64)
+        if actions.shape != (self.num_envs,):
+            raise ValueError(f"expected {self.num_envs} actions, got shape {actions.shape}")
+        if (actions.view(np.uint64) >= NUM_ACTIONS).any():  # negatives wrap to huge values
+            raise ValueError(f"actions must be in 0..{NUM_ACTIONS - 1}, got {actions}")
+        if active is None:
+            active = ~self.done
+        everyone = bool(active.all())  # the common case skips the masking below
+        # 1. safety controller
+        next_cell, rejected, lands = self.safety.decide(self.position, actions)
+        if everyone:
+            self.position = next_cell
+        else:
+            rejected &= active
+            self.position = np.where(active, next_cell, self.position)
+        self.landed |= lands & active
+        # 2.–3. every action costs one unit; the flag reports this step's rejection
+        self.budget -= active
+        self.steps += active
+        self.safety_flag = rejected
+        self.rejected = rejected
+        # 4. field of view marked after every step, the landing step included
+        seen = self.fov[self.position]
+        if not everyone:
+            seen &= active[:, None]
+        newly_seen = mark_seen(self.coverage, seen, self.target)
+        self.seen_targets += newly_seen
+        # 5.–6. reward and termination
+        out_of_budget = self.budget <= 0
+        crashed = out_of_budget & ~self.landed & active
+        self.crashed |= crashed
+        reward = self.config.rewards(newly_seen, rejected, crashed)
+        if not everyone:
+            reward *= active
+        return StepOutcome(reward, self.landed | out_of_budget, rejected, crashed, newly_seen)
+
+    # ------------------------------------------------------------------ views of the state
+    def observation(self) -> dict[str, np.ndarray]:
+        """Batched observation (leading dimension N). ``map`` is a read-only broadcast view."""
+        n, h, w = self.num_envs, self.height, self.width
+        position = np.zeros((n, h * w), dtype=np.int8)
+        position[self._rows, self.position] = 1
+        return {
+            "map": self._map_view,
+            "coverage": self.coverage.view(np.int8).reshape(n, h, w).copy(),
+            "position": position.reshape(n, h, w),
+            "budget": self.budget.astype(np.float32)[:, None],
+            "safety": self.safety_flag.view(np.int8)[:, None].copy(),
+        }
+
+    def info(self) -> dict[str, np.ndarray]:
+        rows, cols = np.divmod(self.position, self.width)
+        return {
+            "position": np.stack([rows, cols], axis=1),
+            "budget": self.budget.copy(),
+            "landed": self.landed.copy(),
+            "crashed": self.crashed.copy(),
+            "rejected": self.rejected.copy(),
+            "coverage_ratio": self.seen_targets / self.num_targets,
+        }

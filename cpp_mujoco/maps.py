@@ -1,0 +1,156 @@
+"""Grid maps: three boolean layers (landing, target, no-fly) read from PNG files.
+
+PNG format, one pixel per cell, a channel > 0 means set: R = no-fly, G = target, B = landing
+(the paper's colours; yellow = target + no-fly). Row 0 is the north edge.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, UnidentifiedImageError
+
+from cpp_mujoco.resources import bundled_dir
+
+MAX_SIDE = 256  # larger grids are almost certainly a wrong file, and would not fit the network
+LAYERS = ("landing", "target", "nfz")
+
+
+class MapError(ValueError):
+    """A map file or layer set that breaks the map rules; the message names the rule and where."""
+
+
+def _first_cell(mask: np.ndarray) -> tuple[int, int]:
+    r, c = np.argwhere(mask)[0]
+    return int(r), int(c)
+
+
+@dataclass(frozen=True, eq=False)
+class GridMap:
+    """An H×W map. Arrays are read-only booleans of shape (H, W)."""
+
+    landing: np.ndarray
+    target: np.ndarray
+    nfz: np.ndarray
+    name: str = "custom"
+
+    def __post_init__(self) -> None:
+        layers = {}
+        for layer in LAYERS:
+            value = np.asarray(getattr(self, layer))
+            if value.ndim != 2:
+                raise MapError(f"layer {layer!r} must be 2-D, got shape {value.shape}")
+            layers[layer] = value.astype(bool, copy=True)
+            layers[layer].flags.writeable = False
+            object.__setattr__(self, layer, layers[layer])
+        shapes = {v.shape for v in layers.values()}
+        if len(shapes) != 1:
+            raise MapError(f"layers have different shapes: { {k: v.shape for k, v in layers.items()} }")
+        h, w = self.landing.shape
+        if not (1 <= h <= MAX_SIDE and 1 <= w <= MAX_SIDE):
+            raise MapError(f"map of {h}x{w} cells is outside 1..{MAX_SIDE} per side")
+        both = self.landing & self.nfz
+        if both.any():
+            r, c = _first_cell(both)
+            raise MapError(
+                f"landing and no-fly overlap in {int(both.sum())} cell(s), first at (row {r}, col {c})"
+            )
+        if not self.landing.any():
+            raise MapError("map has no landing cell (blue channel)")
+        if not self.target.any():
+            raise MapError("map has no target cell (green channel)")
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.landing.shape  # type: ignore[return-value]
+
+    @property
+    def layers(self) -> np.ndarray:
+        """(3, H, W) bool array in observation order: landing, target, no-fly."""
+        return np.stack([self.landing, self.target, self.nfz])
+
+    def counts(self) -> dict[str, int]:
+        return {layer: int(getattr(self, layer).sum()) for layer in LAYERS}
+
+    def to_rgb(self) -> np.ndarray:
+        """(H, W, 3) uint8 image in the file format."""
+        return (np.stack([self.nfz, self.target, self.landing], axis=-1) * 255).astype(np.uint8)
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write as PNG atomically (a crash never leaves a half-written map)."""
+        path = Path(path)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".png.tmp")
+        os.close(fd)
+        try:
+            Image.fromarray(self.to_rgb(), mode="RGB").save(tmp, format="PNG")
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
+    @classmethod
+    def from_ascii(cls, rows: list[str] | str, name: str = "custom") -> GridMap:
+        """Build from text: '.' empty, 'L' landing, 'T' target, 'N' no-fly, 'Y' target+no-fly,
+        'G' landing+target. Handy for tests and for designing maps."""
+        if isinstance(rows, str):
+            rows = [r.strip() for r in rows.strip().splitlines() if r.strip()]
+        widths = {len(r) for r in rows}
+        if len(widths) != 1:
+            raise MapError(f"ASCII map rows have different lengths: {sorted(widths)}")
+        grid = np.array([list(r) for r in rows])
+        unknown = ~np.isin(grid, list(".LTNYG"))
+        if unknown.any():
+            r, c = _first_cell(unknown)
+            raise MapError(f"unknown map character {grid[r, c]!r} at (row {r}, col {c})")
+        return cls(
+            landing=np.isin(grid, ["L", "G"]),
+            target=np.isin(grid, ["T", "Y", "G"]),
+            nfz=np.isin(grid, ["N", "Y"]),
+            name=name,
+        )
+
+
+def bundled_maps() -> list[str]:
+    """Names of the maps shipped with the package (``A``, ``B``, ``C`` …)."""
+    return sorted(p.stem for p in bundled_dir("maps").glob("*.png"))
+
+
+def _read_png(path: Path) -> np.ndarray:
+    try:
+        with Image.open(path) as img:
+            w, h = img.size
+            if w > MAX_SIDE or h > MAX_SIDE:
+                raise MapError(f"{path}: image of {w}x{h} pixels exceeds {MAX_SIDE} cells per side")
+            if img.mode not in ("RGB", "RGBA"):
+                raise MapError(f"{path}: image mode {img.mode!r}; a map must be RGB or RGBA")
+            return np.asarray(img.convert("RGB"))
+    except MapError:
+        raise
+    except FileNotFoundError as e:
+        raise MapError(f"{path}: no such map file") from e
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as e:
+        raise MapError(f"{path}: unreadable or truncated PNG ({e})") from e
+
+
+def load_map(source: str | os.PathLike | GridMap) -> GridMap:
+    """A bundled map by name (``"A"``), a PNG path, or a ``GridMap`` passed through."""
+    if isinstance(source, GridMap):
+        return source
+    text = os.fspath(source)
+    path = Path(text)
+    if path.suffix.lower() != ".png" and os.sep not in text and "/" not in text:
+        candidate = bundled_dir("maps") / f"{text}.png"
+        if not candidate.is_file():
+            raise MapError(f"unknown map {text!r}; bundled maps: {', '.join(bundled_maps())}")
+        path, name = candidate, text
+    else:
+        name = path.stem
+    rgb = _read_png(path)
+    try:
+        return GridMap(landing=rgb[..., 2] > 0, target=rgb[..., 1] > 0, nfz=rgb[..., 0] > 0, name=name)
+    except MapError as e:
+        raise MapError(f"{path}: {e}") from e
