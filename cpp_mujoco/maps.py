@@ -49,7 +49,9 @@ class GridMap:
             object.__setattr__(self, layer, layers[layer])
         shapes = {v.shape for v in layers.values()}
         if len(shapes) != 1:
-            raise MapError(f"layers have different shapes: { {k: v.shape for k, v in layers.items()} }")
+            raise MapError(
+                f"layers have different shapes: { {k: v.shape for k, v in layers.items()} }"
+            )
         h, w = self.landing.shape
         if not (1 <= h <= MAX_SIDE and 1 <= w <= MAX_SIDE):
             raise MapError(f"map of {h}x{w} cells is outside 1..{MAX_SIDE} per side")
@@ -151,6 +153,8 @@ def load_map(source: str | os.PathLike | GridMap) -> GridMap:
         name = path.stem
     rgb = _read_png(path)
     try:
-        return GridMap(landing=rgb[..., 2] > 0, target=rgb[..., 1] > 0, nfz=rgb[..., 0] > 0, name=name)
+        return GridMap(
+            landing=rgb[..., 2] > 0, target=rgb[..., 1] > 0, nfz=rgb[..., 0] > 0, name=name
+        )
     except MapError as e:
         raise MapError(f"{path}: {e}") from e

@@ -26,7 +26,9 @@ class Rewards:
     crash: float = -150.0  # r_crash, budget exhausted without having landed
 
     def __call__(self, newly_seen: np.ndarray, rejected: np.ndarray, crashed: np.ndarray):
-        return self.coverage * newly_seen + self.move + self.safety * rejected + self.crash * crashed
+        return (
+            self.coverage * newly_seen + self.move + self.safety * rejected + self.crash * crashed
+        )
 
 
 @dataclass(frozen=True)
@@ -44,7 +46,9 @@ class GridConfig:
         if self.fov_side < 1:
             raise ValueError(f"fov_side must be >= 1, got {self.fov_side}")
         if not 1 <= self.min_budget <= self.max_budget <= MAX_BUDGET:
-            raise ValueError(f"need 1 <= min_budget <= max_budget, got {self.min_budget}..{self.max_budget}")
+            raise ValueError(
+                f"need 1 <= min_budget <= max_budget, got {self.min_budget}..{self.max_budget}"
+            )
 
     @classmethod
     def from_kwargs(cls, config: GridConfig | None = None, **kwargs) -> GridConfig:
@@ -52,7 +56,9 @@ class GridConfig:
         names = {f.name for f in fields(cls)}
         unknown = set(kwargs) - names
         if unknown:
-            raise TypeError(f"unknown grid config option(s) {sorted(unknown)}; known: {sorted(names)}")
+            raise TypeError(
+                f"unknown grid config option(s) {sorted(unknown)}; known: {sorted(names)}"
+            )
         if config is None:
             return cls(**kwargs)
         return cls(**{**{n: getattr(config, n) for n in names}, **kwargs})
@@ -129,9 +135,10 @@ class GridMDP:
             budgets = rng.integers(self.config.min_budget, self.config.max_budget + 1, size=k)
         else:
             budgets = np.broadcast_to(np.asarray(budget), (k,))
-            if not np.issubdtype(budgets.dtype, np.integer) or not (
-                (budgets >= 1) & (budgets <= MAX_BUDGET)
-            ).all():
+            if (
+                not np.issubdtype(budgets.dtype, np.integer)
+                or not ((budgets >= 1) & (budgets <= MAX_BUDGET)).all()
+            ):
                 raise ValueError(f"budget must be an integer in 1..{MAX_BUDGET}, got {budget!r}")
         self.position[idx] = cells
         self.budget[idx] = budgets

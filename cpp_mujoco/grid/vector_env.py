@@ -58,7 +58,9 @@ class GridVectorEnv(VectorEnv):
         mask = options.pop("reset_mask", None)
         start, budget = options.pop("start", None), options.pop("budget", None)
         if options:
-            raise ValueError(f"unknown reset option(s) {sorted(options)}; known: start, budget, reset_mask")
+            raise ValueError(
+                f"unknown reset option(s) {sorted(options)}; known: start, budget, reset_mask"
+            )
         if mask is not None:
             mask = np.asarray(mask, dtype=bool)
         self.mdp.reset(self.np_random, mask=mask, start=start, budget=budget)

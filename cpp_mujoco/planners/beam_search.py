@@ -1,0 +1,174 @@
+"""A beam-search planner: the strong yardstick for learned agents.
+
+It searches over action sequences breadth-first, keeping per episode the ``width`` partial paths
+that have seen the most target cells, and pruning every path that could no longer get home and
+land. The best landed path found is the plan. Coverage is held as packed bits (popcount), and all
+episodes of a protocol are searched together, so a full protocol takes seconds.
+
+Because the grid is deterministic a plan made at the first step is simply followed; if the
+observed state ever departs from the plan's (e.g. under the physics backend) that episode is
+replanned from where it is.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cpp_mujoco.grid.safety import LAND
+from cpp_mujoco.planners.graph import MapGraph, graph_from_observation
+from cpp_mujoco.planners.state import decode_observation
+
+_MIX = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _pack(mask: np.ndarray) -> np.ndarray:
+    """(..., C) bool → (..., ceil(C/64)) uint64 bitsets."""
+    cells = mask.shape[-1]
+    words = -(-cells // 64)
+    padded = np.zeros((*mask.shape[:-1], words * 64), dtype=bool)
+    padded[..., :cells] = mask
+    return np.packbits(padded, axis=-1, bitorder="little").view(np.uint64)
+
+
+def _popcount(bits: np.ndarray) -> np.ndarray:
+    return np.bitwise_count(bits).sum(axis=-1, dtype=np.int64)
+
+
+def _group_rank(group: np.ndarray, keys: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Rank of each element within its group under ``keys`` (last key most significant)."""
+    order = np.lexsort((*keys, group))
+    sorted_group = group[order]
+    starts = np.r_[0, np.flatnonzero(sorted_group[1:] != sorted_group[:-1]) + 1]
+    first = np.repeat(starts, np.diff(np.r_[starts, group.size]))
+    rank = np.empty(group.size, dtype=np.int64)
+    rank[order] = np.arange(group.size) - first
+    return rank
+
+
+def plan_paths(
+    g: MapGraph, pos: np.ndarray, budget: np.ndarray, coverage: np.ndarray, width: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Best landed action sequence per episode: (actions (k, T) padded with LAND, lengths (k,))."""
+    k = pos.size
+    fov_bits = _pack(g.fov_targets)
+    target = g.grid_map.target.reshape(-1)
+    lands = g.safety.accepted[:, LAND]
+    sees_targets = g.fov_targets.any(axis=1)
+    toward_targets = g.distance[:, sees_targets].min(axis=1)
+    # the beam: one row per partial path
+    ep = np.arange(k)
+    cur = pos.copy()
+    left = budget.copy()
+    bits = _pack(coverage & target)
+    history: list[tuple[np.ndarray, np.ndarray]] = []  # (parent row, action) per depth
+    best_value = np.full(k, -1, dtype=np.int64)
+    best_depth = np.zeros(k, dtype=np.int64)
+    best_row = np.zeros(k, dtype=np.int64)
+    for depth in range(int(budget.max()) + 1):
+        # landing here ends a path: its value is what it has seen (the land step sees FoV too)
+        can_land = lands[cur] & (left >= 1)
+        value = np.where(can_land, _popcount(bits | fov_bits[cur]), -1)
+        order = np.lexsort((-value, ep))  # best value first within each episode
+        first = order[np.r_[True, ep[order][1:] != ep[order][:-1]]]
+        improved = value[first] > best_value[ep[first]]
+        winners = first[improved]
+        best_value[ep[winners]] = value[winners]
+        best_depth[ep[winners]] = depth
+        best_row[ep[winners]] = winners
+        # expand by the four moves, keeping paths that can still get home
+        parent = np.repeat(np.arange(cur.size), LAND)
+        action = np.tile(np.arange(LAND), cur.size)
+        nxt = g.safety.next_cell[cur[parent], action]
+        keep = g.safety.accepted[cur[parent], action] & (left[parent] - 1 >= g.home[nxt])
+        parent, action, nxt = parent[keep], action[keep], nxt[keep]
+        if parent.size == 0:
+            break
+        new_bits = bits[parent] | fov_bits[nxt]
+        score = _popcount(new_bits)
+        new_ep = ep[parent]
+        key = nxt.astype(np.uint64) * _MIX
+        for w in range(new_bits.shape[1]):
+            key = (key ^ new_bits[:, w]) * _MIX
+        # drop duplicate states (same episode, cell and coverage)
+        order = np.lexsort((key, new_ep))
+        dup = np.r_[
+            False, (new_ep[order][1:] == new_ep[order][:-1]) & (key[order][1:] == key[order][:-1])
+        ]
+        order = order[~dup]
+        # keep the best `width` per episode, half ranked for exploring (most seen, then nearest
+        # to unseen targets), half for returning (most seen, then nearest to a landing cell):
+        # ranking on coverage alone fills the beam with paths that can never get home in time
+        cells, ep_u, score_u = nxt[order], new_ep[order], score[order]
+        explore = _group_rank(ep_u, (toward_targets[cells], -score_u))
+        ret = _group_rank(ep_u, (g.home[cells], -score_u))
+        order = order[(explore < width - width // 2) | (ret < width // 2)]
+        history.append((parent[order], action[order]))
+        ep, cur, left, bits = new_ep[order], nxt[order], left[parent[order]] - 1, new_bits[order]
+    # backtrack each episode's best landed path
+    length = best_depth + 1
+    actions = np.full((k, int(length.max())), LAND, dtype=np.int64)
+    row = best_row.copy()
+    for depth in range(int(best_depth.max()), 0, -1):
+        active = best_depth >= depth
+        parents, acts = history[depth - 1]
+        actions[active, depth - 1] = acts[row[active]]
+        row[active] = parents[row[active]]
+    return actions, length
+
+
+class BeamSearchPlanner:
+    name = "beam-search"
+
+    def __init__(self, width: int = 32, fov_side: int = 3):
+        self.width = width
+        self.fov_side = fov_side
+        self._plans: np.ndarray | None = None  # (N, T) actions
+        self._pos: np.ndarray | None = None  # (N, T) expected position before each action
+        self._budget: np.ndarray | None = None  # (N, T) expected budget before each action
+        self._cursor = np.zeros(0, dtype=np.int64)
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        g = graph_from_observation(obs, self.fov_side)
+        pos, budget, coverage = decode_observation(obs)
+        n = pos.size
+        if self._plans is None or self._plans.shape[0] != n:
+            self._store(np.arange(n), *self._search(g, pos, budget, coverage), n=n)
+        rows = np.arange(n)
+        cursor = np.minimum(self._cursor, self._plans.shape[1] - 1)
+        on_plan = (self._pos[rows, cursor] == pos) & (self._budget[rows, cursor] == budget)
+        stale = np.flatnonzero(~on_plan)
+        if stale.size:
+            self._store(stale, *self._search(g, pos[stale], budget[stale], coverage[stale]), n=n)
+            cursor = np.minimum(self._cursor, self._plans.shape[1] - 1)
+        self._cursor += 1
+        return self._plans[rows, cursor]
+
+    def _search(self, g, pos, budget, coverage):
+        actions, _ = plan_paths(g, pos, budget, coverage, self.width)
+        steps = actions.shape[1]
+        positions = np.empty_like(actions)
+        positions[:, 0] = pos
+        for t in range(1, steps):
+            positions[:, t] = g.safety.next_cell[positions[:, t - 1], actions[:, t - 1]]
+        budgets = budget[:, None] - np.arange(steps)[None, :]
+        return actions, positions, budgets
+
+    def _store(self, rows, actions, positions, budgets, n: int) -> None:
+        steps = actions.shape[1]
+        if self._plans is None or self._plans.shape[0] != n:
+            self._plans = np.full((n, steps), LAND, dtype=np.int64)
+            self._pos = np.full((n, steps), -1, dtype=np.int64)
+            self._budget = np.full((n, steps), -1, dtype=np.int64)
+            self._cursor = np.zeros(n, dtype=np.int64)
+        if steps > self._plans.shape[1]:
+            extra = steps - self._plans.shape[1]
+            self._plans = np.pad(self._plans, ((0, 0), (0, extra)), constant_values=LAND)
+            self._pos = np.pad(self._pos, ((0, 0), (0, extra)), constant_values=-1)
+            self._budget = np.pad(self._budget, ((0, 0), (0, extra)), constant_values=-1)
+        self._plans[rows] = LAND
+        self._pos[rows] = -1
+        self._budget[rows] = -1
+        self._plans[rows, :steps] = actions
+        self._pos[rows, :steps] = positions
+        self._budget[rows, :steps] = budgets
+        self._cursor[rows] = 0
