@@ -150,6 +150,14 @@ class GridMDP:
         self.rejected[idx] = False
         self.steps[idx] = 0
 
+    def restore(self, position: np.ndarray, budget: np.ndarray, coverage: np.ndarray) -> None:
+        """Put every environment into a given mid-episode state (flat cells, budgets, (N, H·W)
+        coverage) — for planners that simulate ahead from an observation."""
+        self.reset(np.random.default_rng(0), budget=np.asarray(budget, dtype=np.int64))
+        self.position[:] = position
+        self.coverage[:] = coverage
+        self.seen_targets[:] = (self.coverage & self.target).sum(axis=1)
+
     def _start_cells(self, start, k: int) -> np.ndarray:
         rc = np.asarray(start)
         if rc.shape == (2,):

@@ -5,7 +5,8 @@ that have seen the most target cells, and pruning every path that could no longe
 land. The best landed path found is the plan. Coverage is held as packed bits (popcount), and all
 episodes of a protocol are searched together, so a full protocol takes seconds.
 
-Because the grid is deterministic a plan made at the first step is simply followed; if the
+The safe greedy planner's path is kept as the incumbent: where it sees more than the beam's best,
+it is the plan, so this planner is never worse than greedy. Because the grid is deterministic a plan made at the first step is simply followed; if the
 observed state ever departs from the plan's (e.g. under the physics backend) that episode is
 replanned from where it is.
 """
@@ -16,7 +17,9 @@ import numpy as np
 
 from cpp_mujoco.grid.safety import LAND
 from cpp_mujoco.planners.graph import MapGraph, graph_from_observation
-from cpp_mujoco.planners.state import decode_observation
+from cpp_mujoco.grid.mdp import GridConfig
+from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
+from cpp_mujoco.planners.state import decode_observation, rollout
 
 _MIX = np.uint64(0x9E3779B97F4A7C15)
 
@@ -116,6 +119,18 @@ def plan_paths(
     return actions, length
 
 
+class _Replay:
+    """A policy that replays fixed action sequences, one column per call."""
+
+    def __init__(self, actions: np.ndarray):
+        self.actions, self.t = actions, 0
+
+    def act(self, obs) -> np.ndarray:
+        column = self.actions[:, min(self.t, self.actions.shape[1] - 1)]
+        self.t += 1
+        return column
+
+
 class BeamSearchPlanner:
     name = "beam-search"
 
@@ -126,6 +141,7 @@ class BeamSearchPlanner:
         self._pos: np.ndarray | None = None  # (N, T) expected position before each action
         self._budget: np.ndarray | None = None  # (N, T) expected budget before each action
         self._cursor = np.zeros(0, dtype=np.int64)
+        self._length = np.zeros(0, dtype=np.int64)
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         g = graph_from_observation(obs, self.fov_side)
@@ -136,7 +152,8 @@ class BeamSearchPlanner:
         rows = np.arange(n)
         cursor = np.minimum(self._cursor, self._plans.shape[1] - 1)
         on_plan = (self._pos[rows, cursor] == pos) & (self._budget[rows, cursor] == budget)
-        stale = np.flatnonzero(~on_plan)
+        finished = (self._cursor >= self._length) | (budget <= 0)  # ended: nothing to replan
+        stale = np.flatnonzero(~on_plan & ~finished)
         if stale.size:
             self._store(stale, *self._search(g, pos[stale], budget[stale], coverage[stale]), n=n)
             cursor = np.minimum(self._cursor, self._plans.shape[1] - 1)
@@ -144,22 +161,35 @@ class BeamSearchPlanner:
         return self._plans[rows, cursor]
 
     def _search(self, g, pos, budget, coverage):
-        actions, _ = plan_paths(g, pos, budget, coverage, self.width)
+        """The beam's plan, or the safe greedy planner's where that sees more (the incumbent)."""
+        config = GridConfig(fov_side=self.fov_side)
+        beam, beam_len = plan_paths(g, pos, budget, coverage, self.width)
+        _, beam_seen, _ = rollout(g.grid_map, _Replay(beam), pos, budget, coverage, config)
+        greedy, greedy_seen, greedy_len = rollout(
+            g.grid_map, SafeGreedyPlanner(self.fov_side), pos, budget, coverage, config
+        )
+        steps = max(beam.shape[1], greedy.shape[1])
+        beam = np.pad(beam, ((0, 0), (0, steps - beam.shape[1])), constant_values=LAND)
+        greedy = np.pad(greedy, ((0, 0), (0, steps - greedy.shape[1])), constant_values=LAND)
+        use_greedy = greedy_seen > beam_seen
+        actions = np.where(use_greedy[:, None], greedy, beam)
+        length = np.where(use_greedy, greedy_len, beam_len)
         steps = actions.shape[1]
         positions = np.empty_like(actions)
         positions[:, 0] = pos
         for t in range(1, steps):
             positions[:, t] = g.safety.next_cell[positions[:, t - 1], actions[:, t - 1]]
         budgets = budget[:, None] - np.arange(steps)[None, :]
-        return actions, positions, budgets
+        return actions, positions, budgets, length
 
-    def _store(self, rows, actions, positions, budgets, n: int) -> None:
+    def _store(self, rows, actions, positions, budgets, length, n: int) -> None:
         steps = actions.shape[1]
         if self._plans is None or self._plans.shape[0] != n:
             self._plans = np.full((n, steps), LAND, dtype=np.int64)
             self._pos = np.full((n, steps), -1, dtype=np.int64)
             self._budget = np.full((n, steps), -1, dtype=np.int64)
             self._cursor = np.zeros(n, dtype=np.int64)
+            self._length = np.zeros(n, dtype=np.int64)
         if steps > self._plans.shape[1]:
             extra = steps - self._plans.shape[1]
             self._plans = np.pad(self._plans, ((0, 0), (0, extra)), constant_values=LAND)
@@ -172,3 +202,4 @@ class BeamSearchPlanner:
         self._pos[rows, :steps] = positions
         self._budget[rows, :steps] = budgets
         self._cursor[rows] = 0
+        self._length[rows] = length

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.grid.safety import LAND
+from cpp_mujoco.maps import GridMap
+
 
 def decode_observation(obs: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(flat position (N,), remaining budget (N,), coverage (N, H·W) bool) of a batch."""
@@ -13,3 +17,27 @@ def decode_observation(obs: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarr
     budget = np.asarray(obs["budget"]).reshape(n).astype(np.int64)
     coverage = np.asarray(obs["coverage"]).reshape(n, -1).astype(bool)
     return pos, budget, coverage
+
+
+def rollout(
+    grid_map: GridMap,
+    policy,
+    pos: np.ndarray,
+    budget: np.ndarray,
+    coverage: np.ndarray,
+    config: GridConfig | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Play ``policy`` from the given states to the end in a scratch :class:`GridMDP`.
+
+    Returns (actions (k, T) padded with LAND, target cells seen at the end (k,), actions taken (k,)).
+    """
+    mdp = GridMDP(grid_map, pos.size, config)
+    mdp.restore(pos, budget, coverage)
+    taken = []
+    while not mdp.done.all():
+        active = ~mdp.done
+        actions = np.where(active, policy.act(mdp.observation()), LAND)
+        mdp.step(actions, active=active)
+        taken.append(actions)
+    actions = np.stack(taken, axis=1) if taken else np.full((pos.size, 1), LAND)
+    return actions, mdp.seen_targets.copy(), mdp.steps.copy()
