@@ -28,7 +28,9 @@ def zone_colors(grid_map: GridMap) -> np.ndarray:
     return img
 
 
-def grid_image(grid_map: GridMap, coverage: np.ndarray, position: int, scale: int = 16) -> np.ndarray:
+def grid_image(
+    grid_map: GridMap, coverage: np.ndarray, position: int, scale: int = 16
+) -> np.ndarray:
     """Zones, seen cells lightened, the UAV's cell dark; each cell ``scale`` pixels wide."""
     img = zone_colors(grid_map).astype(np.float32)
     seen = np.asarray(coverage, dtype=bool).reshape(grid_map.shape)
