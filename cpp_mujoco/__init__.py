@@ -10,3 +10,6 @@ if "cpp_mujoco/Grid-v0" not in registry:
         entry_point="cpp_mujoco.grid.env:GridEnv",
         vector_entry_point="cpp_mujoco.grid.vector_env:GridVectorEnv",
     )
+
+if "cpp_mujoco/MuJoCo-v0" not in registry:
+    register(id="cpp_mujoco/MuJoCo-v0", entry_point="cpp_mujoco.physics.env:MuJoCoEnv")

@@ -1,0 +1,128 @@
+"""The arena: ground tiles and no-fly volumes built from a grid map, with the quadrotor attached.
+
+World frame: x east, y north, z up; the map is centred on the origin, so cell (row, col) — row 0
+the north edge — has its centre at ``x = (col + ½ − W/2)·cell``, ``y = (H/2 − row − ½)·cell``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from dm_control import mjcf
+
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.quadrotor import quadrotor_xml
+
+# the paper's colours; a landing cell that is also a target shows as landing (blue-green)
+ZONE_RGBA = {
+    "empty": (0.80, 0.80, 0.78, 1.0),
+    "landing": (0.20, 0.35, 0.90, 1.0),
+    "target": (0.25, 0.75, 0.30, 1.0),
+    "landing_target": (0.15, 0.60, 0.75, 1.0),
+    "nfz": (0.85, 0.20, 0.20, 1.0),
+    "target_nfz": (0.95, 0.85, 0.20, 1.0),
+}
+NFZ_VOLUME_RGBA = (1.0, 0.1, 0.1, 0.18)
+TILE_GAP = 0.03  # m between tiles, so the grid is visible from above
+
+
+def zone_of(grid_map: GridMap, row: int, col: int) -> str:
+    landing, target, nfz = (bool(layer[row, col]) for layer in grid_map.layers)
+    if nfz:
+        return "target_nfz" if target else "nfz"
+    if landing:
+        return "landing_target" if target else "landing"
+    return "target" if target else "empty"
+
+
+@dataclass(frozen=True)
+class GridGeometry:
+    """Conversions between grid cells and world coordinates."""
+
+    height: int
+    width: int
+    cell_size: float
+
+    def cell_center(self, row: int, col: int) -> tuple[float, float]:
+        cs = self.cell_size
+        return ((col + 0.5 - self.width / 2) * cs, (self.height / 2 - row - 0.5) * cs)
+
+    def cell_of(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) containing world point (x, y); may lie outside the grid."""
+        cs = self.cell_size
+        return (math.floor(self.height / 2 - y / cs), math.floor(x / cs + self.width / 2))
+
+    def centers(self) -> np.ndarray:
+        """(H·W, 2) world xy of every cell centre, in flat cell order ``row·W + col``."""
+        rows, cols = np.divmod(np.arange(self.height * self.width), self.width)
+        cs = self.cell_size
+        return np.stack(
+            [(cols + 0.5 - self.width / 2) * cs, (self.height / 2 - rows - 0.5) * cs], 1
+        )
+
+    @property
+    def half_extent(self) -> tuple[float, float]:
+        return (self.width * self.cell_size / 2, self.height * self.cell_size / 2)
+
+
+def camera_fovy(config: PhysicsConfig, fov_side: int = 3) -> float:
+    """Vertical field of view (deg, square image) whose footprint, hovering level at cruise
+    altitude over a cell centre, spans exactly ``fov_side`` × ``fov_side`` cells."""
+    return math.degrees(2 * math.atan(fov_side * config.cell_size / 2 / config.altitude))
+
+
+def build_arena(grid_map: GridMap, config: PhysicsConfig, fov_side: int = 3) -> mjcf.RootElement:
+    """The MJCF model of the map with the quadrotor attached on a free joint."""
+    geo = GridGeometry(*grid_map.shape, config.cell_size)
+    hx, hy = geo.half_extent
+    arena = mjcf.RootElement(model=f"arena_{grid_map.name}")
+    arena.option.timestep = config.timestep
+    arena.option.density = 0.0  # drag is our own model (wind.py), not MuJoCo's fluid forces
+    arena.visual.headlight.ambient = (0.4, 0.4, 0.4)
+    arena.visual.map.zfar = 500.0
+    arena.visual.__getattr__("global").offwidth = 1280
+    arena.visual.__getattr__("global").offheight = 720
+    arena.worldbody.add("light", pos=(0, 0, 50), dir=(0, 0, -1), directional=True)
+
+    # the one collision surface; tiles above it are visual only
+    margin = 4 * config.cell_size
+    arena.worldbody.add(
+        "geom", name="ground", type="plane", size=(hx + margin, hy + margin, 0.1),
+        rgba=(0.35, 0.35, 0.33, 1), contype=1, conaffinity=1, condim=3,
+    )  # fmt: skip
+    tile = config.cell_size / 2 - TILE_GAP / 2
+    volume_height = 2 * config.altitude
+    for row in range(geo.height):
+        for col in range(geo.width):
+            x, y = geo.cell_center(row, col)
+            zone = zone_of(grid_map, row, col)
+            arena.worldbody.add(
+                "geom", name=f"tile_{row}_{col}", type="box", size=(tile, tile, 0.005),
+                pos=(x, y, 0.005), rgba=ZONE_RGBA[zone], contype=0, conaffinity=0, group=0,
+            )  # fmt: skip
+            if grid_map.nfz[row, col]:
+                arena.worldbody.add(
+                    "geom", name=f"nfz_{row}_{col}", type="box",
+                    size=(config.cell_size / 2, config.cell_size / 2, volume_height / 2),
+                    pos=(x, y, volume_height / 2), rgba=NFZ_VOLUME_RGBA,
+                    contype=0, conaffinity=0, group=1,
+                )  # fmt: skip
+    side = max(hx, hy)
+    arena.worldbody.add(
+        "camera", name="overview", pos=(0, -1.6 * side, 2.2 * side), xyaxes=(1, 0, 0, 0, 0.8, 0.6)
+    )
+
+    quad = mjcf.from_path(str(quadrotor_xml()))
+    quad.find("camera", "downward").fovy = camera_fovy(config, fov_side)
+    frame = arena.worldbody.attach(quad)
+    frame.add("freejoint", name="root")
+    return arena
+
+
+def compile_arena(arena: mjcf.RootElement) -> mujoco.MjModel:
+    """Compile the composed MJCF straight into an ``MjModel``."""
+    return mujoco.MjModel.from_xml_string(arena.to_xml_string(), arena.get_assets())

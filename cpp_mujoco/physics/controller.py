@@ -1,0 +1,192 @@
+"""Waypoint tracking: a minimum-jerk reference and a geometric SE(3) controller (Lee et al. 2010).
+
+Why geometric rather than cascaded PID: it works on the rotation matrix directly, so it has no
+Euler-angle singularities and the thrust direction and attitude errors are exact for any tilt; the
+whole law is a few dozen multiply-adds, cheap enough in plain Python floats (numpy on 3-vectors
+costs a microsecond per call and would dominate the physics step).
+
+Chain: position/velocity error → desired force (with an integral for steady wind) → desired
+attitude (thrust axis along the force, heading fixed) → torque from attitude and body-rate errors
+→ rotor thrusts through the inverse allocation matrix, with saturation priority
+roll/pitch > collective thrust > yaw.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpp_mujoco.physics.quadrotor import QuadrotorParams
+
+GRAVITY = 9.81
+
+
+class MinJerk:
+    """Rest-to-rest minimum-jerk path from ``start`` to ``end`` over ``duration`` seconds."""
+
+    __slots__ = ("start", "delta", "duration")
+
+    def __init__(self, start, end, duration: float):
+        self.start = tuple(float(v) for v in start)
+        self.delta = tuple(float(e) - s for s, e in zip(self.start, end, strict=True))
+        self.duration = float(duration)
+
+    @property
+    def end(self) -> tuple[float, float, float]:
+        return tuple(s + d for s, d in zip(self.start, self.delta, strict=True))
+
+    def __call__(self, t: float):
+        """(position, velocity, acceleration) at time ``t`` (held at the end after ``duration``)."""
+        T = self.duration
+        if t >= T:
+            return self.end, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+        u = max(t, 0.0) / T
+        u2 = u * u
+        s = u2 * u * (10 - 15 * u + 6 * u2)
+        ds = 30 * u2 * (1 - u) ** 2 / T
+        dds = 60 * u * (1 - u) * (1 - 2 * u) / (T * T)
+        (x, y, z), (dx, dy, dz) = self.start, self.delta
+        return (
+            (x + s * dx, y + s * dy, z + s * dz),
+            (ds * dx, ds * dy, ds * dz),
+            (dds * dx, dds * dy, dds * dz),
+        )
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Loop bandwidths; gains are derived from them and the airframe's mass and inertia.
+
+    Position at 2 rad/s and attitude at 12 rad/s keep each loop ≥ 5× slower than the next
+    (attitude vs. the 25 rad/s rotor lag), the usual cascade separation.
+    """
+
+    position_bw: float = 2.0  # rad/s
+    position_damping: float = 0.9
+    position_integral: float = 0.6  # 1/s, integral gain relative to the proportional gain
+    integral_limit: float = 3.0  # N, anti-windup bound of the integral force
+    attitude_bw: float = 12.0  # rad/s (roll, pitch)
+    attitude_damping: float = 0.8
+    yaw_bw: float = 4.0  # rad/s
+    max_tilt_deg: float = 35.0  # the desired force is tilted at most this much
+
+
+class GeometricController:
+    """Lee, Leok & McClamroch (2010) on SE(3), in plain floats. Heading held at yaw 0."""
+
+    def __init__(self, params: QuadrotorParams, gains: Gains | None = None):
+        g = gains or Gains()
+        m = params.mass
+        self.mass = m
+        self.kx = m * g.position_bw**2
+        self.kv = 2 * g.position_damping * g.position_bw * m
+        self.ki = self.kx * g.position_integral
+        self.i_limit = g.integral_limit
+        self.tan_tilt = math.tan(math.radians(g.max_tilt_deg))
+        jx, jy, jz = params.inertia
+        self.J = (jx, jy, jz)
+        self.kR = (jx * g.attitude_bw**2, jy * g.attitude_bw**2, jz * g.yaw_bw**2)
+        self.kW = (
+            2 * g.attitude_damping * g.attitude_bw * jx,
+            2 * g.attitude_damping * g.attitude_bw * jy,
+            2 * g.attitude_damping * g.yaw_bw * jz,
+        )
+        A = params.allocation_matrix()
+        self.A = A
+        self.A_inv = tuple(tuple(float(v) for v in row) for row in np.linalg.inv(A))
+        self.f_max = params.max_thrust
+        self.min_fz = 0.1 * m * GRAVITY
+        self.integral = (0.0, 0.0, 0.0)
+
+    def reset(self) -> None:
+        self.integral = (0.0, 0.0, 0.0)
+
+    def hover_thrust(self) -> float:
+        return self.mass * GRAVITY / 4
+
+    def __call__(self, pos, vel, R, omega, ref_p, ref_v, ref_a, dt: float) -> list[float]:
+        """Rotor thrusts (N) for state (world position, world velocity, body→world rotation as a
+        row-major 9-sequence, body angular velocity) and the reference (p, v, a).
+
+        Written out in scalars on purpose: this runs at the control rate in Python.
+        """
+        kx, kv, m, ki, lim = self.kx, self.kv, self.mass, self.ki * dt, self.i_limit
+        ig = self.integral
+        ex, ey, ez = pos[0] - ref_p[0], pos[1] - ref_p[1], pos[2] - ref_p[2]
+        ix, iy, iz = ig[0] - ki * ex, ig[1] - ki * ey, ig[2] - ki * ez
+        if ix * ix + iy * iy + iz * iz > lim * lim:  # anti-windup: bound the integral force
+            k = lim / math.sqrt(ix * ix + iy * iy + iz * iz)
+            ix, iy, iz = ix * k, iy * k, iz * k
+        self.integral = (ix, iy, iz)
+        fx = -kx * ex - kv * (vel[0] - ref_v[0]) + ix + m * ref_a[0]
+        fy = -kx * ey - kv * (vel[1] - ref_v[1]) + iy + m * ref_a[1]
+        fz = -kx * ez - kv * (vel[2] - ref_v[2]) + iz + m * (ref_a[2] + GRAVITY)
+        if fz < self.min_fz:  # never ask to push downwards
+            fz = self.min_fz
+        horiz2 = fx * fx + fy * fy
+        cap = fz * self.tan_tilt
+        if horiz2 > cap * cap:  # limit the tilt, keep the vertical component
+            scale = cap / math.sqrt(horiz2)
+            fx, fy = fx * scale, fy * scale
+            horiz2 = cap * cap
+        r0, r1, r2, r3, r4, r5, r6, r7, r8 = R
+        # collective thrust: the desired force projected on the current thrust axis b3 = R[:, 2]
+        thrust = fx * r2 + fy * r5 + fz * r8
+        # desired attitude: b3d along the force, b1d towards yaw 0 (east):
+        # b2d = b3d × (1, 0, 0) normalised, b1d = b2d × b3d
+        n = 1.0 / math.sqrt(horiz2 + fz * fz)
+        a0, a1, a2 = fx * n, fy * n, fz * n
+        nb = 1.0 / math.sqrt(a1 * a1 + a2 * a2)
+        b1, b2 = a2 * nb, -a1 * nb  # b2d = (0, b1, b2)
+        c0, c1, c2 = b1 * a2 - b2 * a1, b2 * a0, -b1 * a0  # b1d
+        # e_R = ½ vee(Rdᵀ R − Rᵀ Rd), with R's columns (r0, r3, r6), (r1, r4, r7), (r2, r5, r8)
+        er0 = 0.5 * (a0 * r1 + a1 * r4 + a2 * r7 - (b1 * r5 + b2 * r8))
+        er1 = 0.5 * (c0 * r2 + c1 * r5 + c2 * r8 - (a0 * r0 + a1 * r3 + a2 * r6))
+        er2 = 0.5 * (b1 * r3 + b2 * r6 - (c0 * r1 + c1 * r4 + c2 * r7))
+        w0, w1, w2 = omega
+        jx, jy, jz = self.J
+        kR0, kR1, kR2 = self.kR
+        kW0, kW1, kW2 = self.kW
+        # M = −k_R e_R − k_Ω Ω + Ω × JΩ
+        mx = -kR0 * er0 - kW0 * w0 + (jz - jy) * w1 * w2
+        my = -kR1 * er1 - kW1 * w1 + (jx - jz) * w2 * w0
+        mz = -kR2 * er2 - kW2 * w2 + (jy - jx) * w0 * w1
+        return self.mix(thrust, mx, my, mz)
+
+    def mix(self, thrust: float, mx: float, my: float, mz: float) -> list[float]:
+        """Rotor thrusts in [0, f_max] for the wrench. Saturation gives up yaw first, then
+        collective thrust, then (scaling) roll/pitch — a quadrotor that loses its attitude
+        loses everything else too."""
+        fmax = self.f_max
+        (t0, x0, y0, z0), (t1, x1, y1, z1), (t2, x2, y2, z2), (t3, x3, y3, z3) = self.A_inv
+        p0, p1, p2, p3 = x0 * mx + y0 * my, x1 * mx + y1 * my, x2 * mx + y2 * my, x3 * mx + y3 * my
+        f0, f1, f2, f3 = t0 * thrust + p0, t1 * thrust + p1, t2 * thrust + p2, t3 * thrust + p3
+        low, high = min(f0, f1, f2, f3), max(f0, f1, f2, f3)
+        if low < 0.0 or high > fmax:
+            if high - low > fmax:  # roll/pitch alone exceed the range: scale them down
+                k = fmax / (high - low)
+                p0, p1, p2, p3 = p0 * k, p1 * k, p2 * k, p3 * k
+                f0, f1, f2, f3 = (
+                    t0 * thrust + p0,
+                    t1 * thrust + p1,
+                    t2 * thrust + p2,
+                    t3 * thrust + p3,
+                )
+                low, high = min(f0, f1, f2, f3), max(f0, f1, f2, f3)
+            # shift the collective (equal on all rotors) just enough to fit
+            shift = -low if low < 0.0 else (fmax - high if high > fmax else 0.0)
+            f0, f1, f2, f3 = f0 + shift, f1 + shift, f2 + shift, f3 + shift
+        f = [f0, f1, f2, f3]
+        yaw = (z0 * mz, z1 * mz, z2 * mz, z3 * mz)
+        s = 1.0  # the largest share of the yaw torque that still fits
+        for v, y in zip(f, yaw):  # noqa: B905 - both have four entries
+            if v + y > fmax:
+                s = min(s, (fmax - v) / y)
+            elif v + y < 0.0:
+                s = min(s, -v / y)
+        if s == 1.0:
+            return [f0 + yaw[0], f1 + yaw[1], f2 + yaw[2], f3 + yaw[3]]
+        s = max(s, 0.0)
+        return [min(fmax, max(0.0, v + s * y)) for v, y in zip(f, yaw)]  # noqa: B905

@@ -1,0 +1,305 @@
+"""The flight loop: one grid action flown as a macro-step of controller ticks and MuJoCo steps.
+
+Rates: MuJoCo steps every ``timestep``; the controller, wind, drag, energy and failure checks run
+every ``substeps`` physics steps (``mj_step(..., nstep=k)``); the camera takes a frame at
+``camera_rate`` plus one at the start and end of every action. Energy is still the exact sum over
+physics steps (see :class:`~cpp_mujoco.physics.energy.IntervalEnergy`); no-fly violations are
+sampled per tick and counted as ``substeps`` physics steps each.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from cpp_mujoco.grid.coverage import mark_seen
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.arena import GridGeometry
+from cpp_mujoco.physics.camera import cells_in_footprint, corner_rays, footprint
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.controller import GeometricController, MinJerk
+from cpp_mujoco.physics.energy import IntervalEnergy, PowerModel
+from cpp_mujoco.physics.quadrotor import QuadrotorParams
+from cpp_mujoco.physics.wind import Wind
+
+Reference = Callable[[float], tuple]
+
+
+@dataclass
+class ActionResult:
+    """What one macro-step did."""
+
+    duration: float = 0.0  # s of simulated time
+    energy: float = 0.0  # J drawn from the battery
+    newly_seen: int = 0  # target cells seen for the first time
+    arrived: bool = False  # reached the waypoint within tolerances (moves and landings)
+    landed: bool = False  # touched down on the landing gear
+    tracking_error: float = 0.0  # m, distance from the commanded point at the end
+    failure: str | None = None  # why the flight ended physically (battery, flip, …)
+
+
+def quat_to_mat(w: float, x: float, y: float, z: float) -> tuple[float, ...]:
+    """Row-major body→world rotation of a unit quaternion (MuJoCo's w, x, y, z order)."""
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    return (
+        1 - 2 * (yy + zz), 2 * (xy - wz), 2 * (xz + wy),
+        2 * (xy + wz), 1 - 2 * (xx + zz), 2 * (yz - wx),
+        2 * (xz - wy), 2 * (yz + wx), 1 - 2 * (xx + yy),
+    )  # fmt: skip
+
+
+class Flight:
+    """A quadrotor flying over a grid map in a compiled arena model."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        grid_map: GridMap,
+        config: PhysicsConfig,
+        coverage: np.ndarray | None = None,
+    ):
+        self.model, self.config, self.map = model, config, grid_map
+        self.data = mujoco.MjData(model)
+        self.params = p = QuadrotorParams.from_model(model)
+        self.geo = GridGeometry(*grid_map.shape, config.cell_size)
+        self.controller = GeometricController(p)
+        self.power = PowerModel(p, config.air_density)
+        self.k = config.substeps
+        self.dt = config.control_dt
+        self.interval_energy = IntervalEnergy(self.power, config.timestep, p.motor_tau, self.k)
+        self.wind = Wind(config, self.dt, p.drag_area)
+
+        frame_body = int(model.body_parentid[p.body_id])
+        jnt = int(model.body_jntadr[frame_body])
+        if model.jnt_type[jnt] != mujoco.mjtJoint.mjJNT_FREE:
+            raise ValueError("the quadrotor must hang on a free joint")
+        qa, va = int(model.jnt_qposadr[jnt]), int(model.jnt_dofadr[jnt])
+        d = self.data
+        self._qpos, self._qvel = d.qpos[qa : qa + 7], d.qvel[va : va + 6]
+        self._ctrl, self._act = d.ctrl, d.act
+        self._xfrc = d.xfrc_applied[p.body_id]
+        self.cam_id = int(model.camera("quadrotor/downward").id)
+        self.rays = corner_rays(float(model.cam_fovy[self.cam_id]))
+        self._cam_pos, self._cam_mat = d.cam_xpos[self.cam_id], d.cam_xmat[self.cam_id]
+        self.cruise_z = config.altitude - float(model.cam_pos[self.cam_id][2])
+        self.ground_id = int(model.geom("ground").id)
+        quad_geoms = np.flatnonzero(model.body_rootid[model.geom_bodyid] == frame_body)
+        gear = [model.geom(f"quadrotor/skid_{s}").id for s in "lr"]
+        self.gear_geoms = frozenset(int(g) for g in gear)
+        self.quad_geoms = frozenset(int(g) for g in quad_geoms)
+        self.touch_z = -min(
+            float(model.geom_pos[g][2]) - float(model.geom_size[g][0]) for g in self.gear_geoms
+        )
+        self._seen = np.zeros((1, grid_map.target.size), dtype=bool)
+        self.target = grid_map.target.reshape(-1)
+        self.no_fly = grid_map.nfz.reshape(-1).tolist()
+        self.coverage = coverage if coverage is not None else np.zeros((1, self.target.size), bool)
+        self.cos_flip = math.cos(math.radians(config.max_tilt_deg))
+        hx, hy = self.geo.half_extent
+        self.bounds = (hx + config.cell_size, hy + config.cell_size, 3 * config.altitude + 5)
+        self._warn_badqacc = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
+        self.capacity = math.inf
+        self.reset(0, 0)
+
+    # ------------------------------------------------------------------ episode state
+    def reset(self, row: int, col: int, capacity: float = math.inf, rng=None) -> None:
+        """Hover level at cruise altitude over (row, col) with rotors at hover thrust."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        x, y = self.geo.cell_center(row, col)
+        self._qpos[:3] = (x, y, self.cruise_z)
+        self._qpos[3:] = (1, 0, 0, 0)
+        hover = self.controller.hover_thrust()
+        d.ctrl[:] = hover
+        d.act[:] = hover
+        mujoco.mj_forward(m, d)
+        self.controller.reset()
+        self.wind.reset(rng if rng is not None else np.random.default_rng(0))
+        self.capacity = capacity
+        self.energy_used = 0.0
+        self.motors_on = True
+        self.nfz_violations = 0
+        self.next_frame = 0.0
+        self.frames = 0
+        self.last_footprint: np.ndarray | None = None
+        self.coverage[:] = False
+        self._bad0 = self._warn_badqacc.number
+
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    @property
+    def position(self) -> np.ndarray:
+        return self._qpos[:3].copy()
+
+    def waypoint(self, cell: int) -> tuple[float, float, float]:
+        row, col = divmod(int(cell), self.geo.width)
+        return (*self.geo.cell_center(row, col), self.cruise_z)
+
+    # ------------------------------------------------------------------ macro-steps
+    def move(self, cell: int) -> ActionResult:
+        """Fly to the centre of ``cell``; done on arrival or at the time limit."""
+        c = self.config
+        goal = self.waypoint(cell)
+        ref = MinJerk(self.position, goal, c.move_duration)
+        return self._fly(ref, goal, c.move_duration, c.move_time_limit, arrive=True)
+
+    def hover(self, cell: int) -> ActionResult:
+        """Hold over the centre of ``cell`` for one nominal move duration (a rejected action)."""
+        c = self.config
+        goal = self.waypoint(cell)
+        ref = MinJerk(self.position, goal, c.move_duration)
+        return self._fly(ref, goal, c.move_duration, c.move_duration, arrive=False)
+
+    def land(self, cell: int) -> ActionResult:
+        """Descend over ``cell`` and touch down; touchdown is a landing-gear/ground contact."""
+        c = self.config
+        x, y, _ = self.waypoint(cell)
+        flare = self.touch_z + 0.3
+        descent = MinJerk(self.position, (x, y, flare), c.land_duration)
+        speed = c.land_speed
+
+        def ref(t: float):
+            if t < c.land_duration:
+                return descent(t)
+            return (x, y, flare - speed * (t - c.land_duration)), (0.0, 0.0, -speed), (0, 0, 0)
+
+        return self._fly(ref, (x, y, self.touch_z), c.land_duration, c.land_time_limit, land=True)
+
+    # ------------------------------------------------------------------ the loop
+    def _fly(self, ref: Reference, goal, nominal, limit, arrive=False, land=False) -> ActionResult:
+        out = ActionResult()
+        e0, t0 = self.energy_used, self.time
+        out.newly_seen += self.frame()
+        m, d, k, dt = self.model, self.data, self.k, self.dt
+        qpos, qvel, ctrl, act, xfrc = self._qpos, self._qvel, self._ctrl, self._act, self._xfrc
+        controller, wind, energy_of = self.controller, self.wind, self.interval_energy
+        geo_h2, geo_w2, inv_cs = self.geo.height / 2, self.geo.width / 2, 1 / self.config.cell_size
+        width, no_fly, n_cells = self.geo.width, self.no_fly, len(self.no_fly)
+        bx, by, bz = self.bounds
+        pos_tol2, vel_tol2 = self.config.arrive_pos_tol**2, self.config.arrive_vel_tol**2
+        max_err2 = self.config.max_tracking_error**2
+        zero = [0.0, 0.0, 0.0, 0.0]
+        t = 0.0
+        while True:
+            qp = qpos.tolist()
+            qv = qvel.tolist()
+            pos, vel = qp[:3], qv[:3]
+            R = quat_to_mat(*qp[3:])
+            # ---- failure checks on the current state
+            failure = None
+            if not all(map(math.isfinite, qp)) or self._warn_badqacc.number != self._bad0:
+                failure = "numerical divergence (NaN or unstable acceleration)"
+            elif abs(pos[0]) > bx or abs(pos[1]) > by or pos[2] > bz:
+                failure = "left the arena"
+            elif R[8] < self.cos_flip and self.motors_on:
+                failure = "flipped over"
+            # no-fly airspace: the body's xy inside a no-fly cell (outside the grid counts)
+            r = math.floor(geo_h2 - pos[1] * inv_cs)
+            c = math.floor(pos[0] * inv_cs + geo_w2)
+            if not (0 <= r < geo_h2 * 2 and 0 <= c < width) or no_fly[r * width + c]:
+                self.nfz_violations += k
+            p_ref, v_ref, a_ref = ref(t)
+            if failure is None and self.motors_on:
+                ex, ey, ez = pos[0] - p_ref[0], pos[1] - p_ref[1], pos[2] - p_ref[2]
+                if ex * ex + ey * ey + ez * ez > max_err2:
+                    failure = "diverged from the reference"
+            if failure is not None:
+                out.failure = failure
+                break
+            if d.time >= self.next_frame:
+                out.newly_seen += self.frame()
+            # ---- done?
+            if not self.motors_on:
+                if self._ground_contact() is not None or t >= self.config.fall_time_limit:
+                    out.failure = "battery empty: motors cut, the UAV fell"
+                    break
+            elif land:
+                touch = self._ground_contact()
+                if touch is not None:
+                    if touch:
+                        out.landed = out.arrived = True
+                        self._settle()
+                    else:
+                        out.failure = "hit the ground with the airframe, not the landing gear"
+                    break
+                if t >= limit:
+                    out.failure = "no touchdown within the landing time limit"
+                    break
+            elif t >= nominal:
+                gx, gy, gz = pos[0] - goal[0], pos[1] - goal[1], pos[2] - goal[2]
+                near = gx * gx + gy * gy + gz * gz < pos_tol2
+                slow = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2] < vel_tol2
+                if arrive and near and slow:
+                    out.arrived = True
+                    break
+                if t >= limit - 1e-9:
+                    break
+            # ---- control, energy, wind, physics
+            if self.motors_on:
+                f = controller(pos, vel, R, qv[3:], p_ref, v_ref, a_ref, dt)
+                e = energy_of(act.tolist(), f)
+                if self.energy_used + e >= self.capacity:  # the battery empties in this tick
+                    self.energy_used = self.capacity
+                    self.motors_on = False
+                    f, t = zero, 0.0  # the fall gets its own time limit
+                else:
+                    self.energy_used += e
+            else:
+                f = zero
+            ctrl[:] = f
+            w = wind.velocity()
+            xfrc[:3] = wind.drag(vel, w)
+            mujoco.mj_step(m, d, nstep=k)
+            t += dt
+        out.newly_seen += self.frame()
+        out.duration = self.time - t0
+        out.energy = self.energy_used - e0
+        p = self._qpos[:3]
+        out.tracking_error = float(math.dist(p.tolist(), goal))
+        return out
+
+    def _ground_contact(self) -> bool | None:
+        """None without contact; True if the landing gear touches the ground, else False."""
+        d = self.data
+        if d.ncon == 0:
+            return None
+        g1, g2 = d.contact.geom1[: d.ncon].tolist(), d.contact.geom2[: d.ncon].tolist()
+        gear, quad, ground = self.gear_geoms, self.quad_geoms, self.ground_id
+        touching = [
+            a if b == ground else b for a, b in zip(g1, g2, strict=True) if ground in (a, b)
+        ]
+        touching = [g for g in touching if g in quad]
+        if not touching:
+            return None
+        return all(g in gear for g in touching)
+
+    def _settle(self, seconds: float = 0.3) -> None:
+        """Motors off after touchdown; let the airframe come to rest on its skids."""
+        self._ctrl[:] = 0.0
+        self.motors_on = False
+        self._xfrc[:3] = 0.0
+        mujoco.mj_step(self.model, self.data, nstep=max(1, round(seconds / self.config.timestep)))
+
+    # ------------------------------------------------------------------ camera
+    def frame(self) -> int:
+        """Take a camera frame: mark the target cells whose centres lie in the footprint."""
+        self.next_frame = float(self.data.time) + 1.0 / self.config.camera_rate
+        self.frames += 1
+        poly = footprint(self._cam_pos.tolist(), self._cam_mat.tolist(), self.rays)
+        self.last_footprint = poly
+        if poly is None:
+            return 0
+        cells = cells_in_footprint(poly, self.geo)
+        if not cells:
+            return 0
+        seen = self._seen
+        seen[:] = False
+        seen[0, cells] = True
+        return int(mark_seen(self.coverage, seen, self.target)[0])
