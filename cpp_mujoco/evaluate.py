@@ -94,19 +94,19 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
 
 
 def coverage_upper_bound(grid_map: GridMap, budget: int, fov_side: int = 3) -> float:
-    """min(targets, cells a path of ``budget`` actions can see) / targets.
+    """An upper bound on the coverage ratio any policy reaches with ``budget`` actions.
 
-    One action must be the landing; each of the other ``budget - 1`` moves reveals at most one new
-    row or column of the footprint (``fov_side`` cells); the first footprint has ``fov_side²``.
-    Only targets visible from cells reachable from the landing zone count.
+    min(targets visible from cells it can visit and still land, cells a path can see) / targets.
+    A visited cell c needs ``2·d(c) + 1 <= budget`` (out from a landing cell, back, land), with
+    d the flight distance to the landing zone; the path sees at most ``fov_side²`` cells at its
+    first step and ``fov_side`` new cells per further move (one action is the landing).
     """
     from cpp_mujoco.planners.graph import build_graph
 
     g = build_graph(grid_map, fov_side)
-    reachable = g.home < g.distance.max(initial=0) + 2
-    reachable &= g.home < 10**6
-    visible = g.fov_targets[reachable].any(axis=0).sum()
-    seeable = fov_side**2 + fov_side * max(budget - 1, 0)
+    visitable = 2 * (g.home - 1) + 1 <= budget
+    visible = int(g.fov_targets[visitable].any(axis=0).sum())
+    seeable = fov_side**2 + fov_side * max(budget - 2, 0)
     return float(min(visible, seeable) / grid_map.target.sum())
 
 

@@ -63,11 +63,15 @@ def test_beam_search_finds_the_optimal_path_on_a_corridor():
 
 
 def test_upper_bound_formula():
-    grid_map = load_map("A")
-    targets = grid_map.target.sum()
-    assert coverage_upper_bound(grid_map, 1) == pytest.approx(9 / targets)
-    assert coverage_upper_bound(grid_map, 10) == pytest.approx((9 + 27) / targets)
-    assert coverage_upper_bound(grid_map, 1000) <= 1.0
+    # the corridor: with b actions the UAV can go (b-1)//2 cells out and still land
+    grid_map = GridMap.from_ascii(["LTTTTTTTTT"])
+    assert coverage_upper_bound(grid_map, 1) == pytest.approx(1 / 9)  # land at once: sees (0,1)
+    assert coverage_upper_bound(grid_map, 3) == pytest.approx(2 / 9)  # one cell out and back
+    assert coverage_upper_bound(grid_map, 7) == pytest.approx(4 / 9)
+    assert coverage_upper_bound(grid_map, 100) == 1.0
+    # the move count limits it too: 9 + 3·(b−2) cells on an open map
+    open_map = GridMap.from_ascii(["L" + "T" * 29] * 30)
+    assert coverage_upper_bound(open_map, 10) == pytest.approx((9 + 24) / 870)
 
 
 def test_result_json_and_unknown_names(tmp_path, greedy_results):

@@ -1,0 +1,131 @@
+"""Paper-style figures with matplotlib: maps (Fig. 2 colours), coverage vs budget (Fig. 3),
+trajectories drawn over the map (Fig. 2)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only: no display needed
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from cpp_mujoco.evaluate import EvaluationResult  # noqa: E402
+from cpp_mujoco.grid.coverage import square_fov_masks  # noqa: E402
+from cpp_mujoco.maps import GridMap, load_map  # noqa: E402
+from cpp_mujoco.review.grid_image import zone_colors  # noqa: E402
+
+
+def _save(fig, path: str | os.PathLike) -> Path:
+    """Save atomically (a crash never leaves a half-written figure)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    fig.savefig(tmp, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path
+
+
+def draw_map(ax, grid_map: GridMap, seen: np.ndarray | None = None) -> None:
+    """Zones in the paper's colours, seen cells lightened, cell grid lines."""
+    img = zone_colors(grid_map).astype(np.float32) / 255
+    if seen is not None:
+        seen = np.asarray(seen, dtype=bool).reshape(grid_map.shape)
+        img[seen] = 0.45 * img[seen] + 0.55
+    h, w = grid_map.shape
+    ax.imshow(img, interpolation="nearest", extent=(-0.5, w - 0.5, h - 0.5, -0.5))
+    ax.set_xticks(np.arange(-0.5, w, 1), minor=True)
+    ax.set_yticks(np.arange(-0.5, h, 1), minor=True)
+    ax.grid(which="minor", color="white", linewidth=0.4)
+    ax.tick_params(which="both", length=0, labelbottom=False, labelleft=False)
+
+
+def map_figure(map_name: str | GridMap, path: str | os.PathLike) -> Path:
+    grid_map = load_map(map_name)
+    fig, ax = plt.subplots(figsize=(4, 4))
+    draw_map(ax, grid_map)
+    counts = grid_map.counts()
+    ax.set_title(
+        f"map {grid_map.name}: {counts['landing']} landing, {counts['target']} target, "
+        f"{counts['nfz']} no-fly",
+        fontsize=9,
+    )
+    return _save(fig, path)
+
+
+def draw_trajectory(ax, grid_map: GridMap, cells: np.ndarray, fov_side: int = 3) -> None:
+    """One episode: seen cells lightened, arrows along the path, start yellow, end white."""
+    cells = cells[cells >= 0]
+    fov = square_fov_masks(grid_map, fov_side)
+    seen = fov[cells[1:]].any(axis=0) if cells.size > 1 else np.zeros(grid_map.landing.size, bool)
+    draw_map(ax, grid_map, seen)
+    rows, cols = np.divmod(cells, grid_map.shape[1])
+    for (r0, c0), (r1, c1) in zip(zip(rows[:-1], cols[:-1]), zip(rows[1:], cols[1:])):
+        if (r0, c0) != (r1, c1):
+            ax.annotate(
+                "", (c1, r1), (c0, r0), arrowprops={"arrowstyle": "->", "color": "red", "lw": 1.2}
+            )
+    ax.add_patch(plt.Rectangle((cols[0] - 0.5, rows[0] - 0.5), 1, 1, color="yellow", alpha=0.9))
+    ax.add_patch(
+        plt.Rectangle((cols[-1] - 0.5, rows[-1] - 0.5), 1, 1, fill=False, ec="white", lw=2)
+    )
+
+
+def trajectories_figure(
+    result: EvaluationResult,
+    path: str | os.PathLike,
+    budgets: Sequence[int] | None = None,
+    start: tuple[int, int] | None = None,
+) -> Path:
+    """The paper's Fig. 2: one start, three budgets (default: low, middle, high)."""
+    grid_map = load_map(result.map_name) if isinstance(result.map_name, str) else result.map_name
+    available = np.unique(result.budgets)
+    if budgets is None:
+        budgets = [int(available[0]), int(available[len(available) // 2]), int(available[-1])]
+    if start is None:
+        start = tuple(int(v) for v in result.starts[0])
+    fig, axes = plt.subplots(1, len(budgets), figsize=(4 * len(budgets), 4.2))
+    for ax, budget in zip(np.atleast_1d(axes), budgets):
+        sel = np.flatnonzero((result.budgets == budget) & (result.starts == start).all(axis=1))
+        if sel.size == 0:
+            raise ValueError(f"no episode with start {start} and budget {budget}")
+        i = int(sel[0])
+        draw_trajectory(ax, grid_map, result.trajectories[i])
+        outcome = "landed" if result.landed[i] else "crashed"
+        ax.set_title(
+            f"{result.policy_name}, map {result.map_name}, budget {budget}\n"
+            f"coverage {result.coverage[i]:.0%}, {result.steps[i]} steps, {outcome}",
+            fontsize=9,
+        )
+    return _save(fig, path)
+
+
+def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike) -> Path:
+    """The paper's Fig. 3: mean coverage ratio per budget, one line per policy, with the bound."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for result in results:
+        table = result.per_budget
+        ax.plot(
+            [r["budget"] for r in table],
+            [r["coverage_ratio"] for r in table],
+            label=f"{result.policy_name} (land {result.landing_ratio:.1%})",
+        )
+    table = results[0].per_budget
+    ax.plot(
+        [r["budget"] for r in table],
+        [r["upper_bound"] for r in table],
+        "k--",
+        lw=1,
+        label="upper bound",
+    )
+    ax.set_xlabel("movement budget")
+    ax.set_ylabel("coverage ratio")
+    ax.set_ylim(0, 1.05)
+    ax.set_title(f"map {results[0].map_name} ({results[0].backend})")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Sets up everything cpp_mujoco needs on a fresh Debian/Ubuntu machine; safe to run again.
+#   - system libraries for offscreen OpenGL (EGL and OSMesa), when run as root
+#   - a virtual environment in .venv with the package, its pinned dependencies and dev tools
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+APT_PACKAGES=(libegl1 libgl1 libosmesa6 libglx-mesa0)
+if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+  missing=()
+  for pkg in "${APT_PACKAGES[@]}"; do
+    dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
+  done
+  if [ ${#missing[@]} -gt 0 ]; then
+    echo "setup: installing ${missing[*]}"
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  fi
+else
+  echo "setup: not root; make sure ${APT_PACKAGES[*]} are installed for offscreen rendering" >&2
+fi
+
+PYTHON=${PYTHON:-python3}
+[ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
+# torch first, pinned: the CPU build; any other spec pulls gigabytes of CUDA packages
+.venv/bin/python -m pip install -q --disable-pip-version-check torch==2.13.0
+.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[dev]"
+echo "setup: ready (.venv)"
