@@ -100,13 +100,17 @@ class GridMDP:
         self.budget = np.zeros(n, dtype=np.int64)
         self.coverage = np.zeros((n, cells), dtype=bool)
         self.seen_targets = np.zeros(n, dtype=np.int64)
-        self.safety_flag = np.zeros(n, dtype=bool)
         self.landed = np.zeros(n, dtype=bool)
         self.crashed = np.zeros(n, dtype=bool)
-        self.rejected = np.zeros(n, dtype=bool)
-        self.steps = np.zeros(n, dtype=np.int64)
+        self.rejected = np.zeros(n, dtype=bool)  # the safety flag: the last action was rejected
+        self.initial_budget = np.zeros(n, dtype=np.int64)
 
     # ------------------------------------------------------------------ state transitions
+    @property
+    def steps(self) -> np.ndarray:
+        """Actions taken so far in each episode (each costs one budget unit)."""
+        return self.initial_budget - self.budget
+
     @property
     def done(self) -> np.ndarray:
         return self.landed | (self.budget <= 0)
@@ -144,11 +148,10 @@ class GridMDP:
         self.budget[idx] = budgets
         self.coverage[idx] = False
         self.seen_targets[idx] = 0
-        self.safety_flag[idx] = False
         self.landed[idx] = False
         self.crashed[idx] = False
         self.rejected[idx] = False
-        self.steps[idx] = 0
+        self.initial_budget[idx] = budgets
 
     def restore(self, position: np.ndarray, budget: np.ndarray, coverage: np.ndarray) -> None:
         """Put every environment into a given mid-episode state (flat cells, budgets, (N, H·W)
@@ -200,8 +203,6 @@ class GridMDP:
         self.landed |= lands & active
         # 2.–3. every action costs one unit; the flag reports this step's rejection
         self.budget -= active
-        self.steps += active
-        self.safety_flag = rejected
         self.rejected = rejected
         # 4. field of view marked after every step, the landing step included
         seen = self.fov[self.position]
@@ -229,7 +230,7 @@ class GridMDP:
             "coverage": self.coverage.view(np.int8).reshape(n, h, w).copy(),
             "position": position.reshape(n, h, w),
             "budget": self.budget.astype(np.float32)[:, None],
-            "safety": self.safety_flag.view(np.int8)[:, None].copy(),
+            "safety": self.rejected.view(np.int8)[:, None].copy(),
         }
 
     def info(self) -> dict[str, np.ndarray]:
