@@ -2,7 +2,8 @@
 
 The unit depends only on how a calm move flies (airframe, controller, timing, geometry), not on
 the map or the weather, so it is cached per configuration: in this process, and as a small JSON
-file keyed by a hash of the configuration, the model XML and the MuJoCo version (written
+file keyed by a hash of the configuration, the model XML, the flight code and the MuJoCo
+version (written
 atomically, so parallel test workers never read half a file).
 """
 
@@ -56,7 +57,7 @@ def calibrate(config: PhysicsConfig) -> dict:
 
 def calibration(config: PhysicsConfig) -> dict:
     """Cached :func:`calibrate` for this configuration."""
-    extra = quadrotor_xml().read_text() + mujoco.__version__
+    extra = quadrotor_xml().read_text() + mujoco.__version__ + _source_digest()
     key = config.calibration_key(extra)
     if key in _MEMO:
         return _MEMO[key]
@@ -73,6 +74,13 @@ def calibration(config: PhysicsConfig) -> dict:
 def unit_energy(config: PhysicsConfig) -> float:
     """J in one budget unit for this configuration."""
     return float(calibration(config)["unit_energy_j"])
+
+
+def _source_digest() -> str:
+    """The code that flies a move: a change to it must invalidate cached units."""
+    here = Path(__file__).resolve().parent
+    names = ("controller.py", "flight.py", "energy.py", "wind.py", "arena.py", "quadrotor.py")
+    return "".join((here / n).read_text() for n in names)
 
 
 def _write_atomic(path: Path, data: dict) -> None:

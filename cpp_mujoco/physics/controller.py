@@ -5,7 +5,7 @@ Euler-angle singularities and the thrust direction and attitude errors are exact
 whole law is a few dozen multiply-adds, cheap enough in plain Python floats (numpy on 3-vectors
 costs a microsecond per call and would dominate the physics step).
 
-Chain: position/velocity error → desired force (with an integral for steady wind) → desired
+Chain: position/velocity error → desired force (minus the observed external force) → desired
 attitude (thrust axis along the force, heading fixed) → torque from attitude and body-rate errors
 → rotor thrusts through the inverse allocation matrix, with saturation priority
 roll/pitch > collective thrust > yaw.
@@ -24,30 +24,41 @@ GRAVITY = 9.81
 
 
 class MinJerk:
-    """Rest-to-rest minimum-jerk path from ``start`` to ``end`` over ``duration`` seconds."""
+    """Rest-to-rest minimum-jerk path from ``start`` to ``end`` over ``duration`` seconds.
 
-    __slots__ = ("start", "delta", "duration")
+    The acceleration is returned ``lead`` seconds ahead: the airframe realises a commanded
+    acceleration only after the attitude loop and the rotor lag (≈ 0.1 s), and feeding it forward
+    that much early removes the tracking lag and the overshoot it would cause at arrival.
+    """
 
-    def __init__(self, start, end, duration: float):
+    __slots__ = ("start", "delta", "duration", "lead")
+
+    def __init__(self, start, end, duration: float, lead: float = 0.0):
         self.start = tuple(float(v) for v in start)
         self.delta = tuple(float(e) - s for s, e in zip(self.start, end, strict=True))
         self.duration = float(duration)
+        self.lead = float(lead)
 
     @property
     def end(self) -> tuple[float, float, float]:
         return tuple(s + d for s, d in zip(self.start, self.delta, strict=True))
 
     def __call__(self, t: float):
-        """(position, velocity, acceleration) at time ``t`` (held at the end after ``duration``)."""
+        """(position, velocity, acceleration at t + lead); held at the end after ``duration``."""
         T = self.duration
+        (x, y, z), (dx, dy, dz) = self.start, self.delta
+        ta = t + self.lead
+        if ta >= T:
+            dds = 0.0
+        else:
+            u = max(ta, 0.0) / T
+            dds = 60 * u * (1 - u) * (1 - 2 * u) / (T * T)
         if t >= T:
-            return self.end, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+            return (x + dx, y + dy, z + dz), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
         u = max(t, 0.0) / T
         u2 = u * u
         s = u2 * u * (10 - 15 * u + 6 * u2)
         ds = 30 * u2 * (1 - u) ** 2 / T
-        dds = 60 * u * (1 - u) * (1 - 2 * u) / (T * T)
-        (x, y, z), (dx, dy, dz) = self.start, self.delta
         return (
             (x + s * dx, y + s * dy, z + s * dz),
             (ds * dx, ds * dy, ds * dz),
@@ -65,12 +76,15 @@ class Gains:
 
     position_bw: float = 2.0  # rad/s
     position_damping: float = 0.9
-    position_integral: float = 0.6  # 1/s, integral gain relative to the proportional gain
+    position_integral: float = 0.0  # 1/s, integral gain relative to the proportional gain
     integral_limit: float = 3.0  # N, anti-windup bound of the integral force
+    observer_tau: float = 0.15  # s, low-pass time constant of the external-force observer
+    observer_limit: float = 8.0  # N, bound of the estimated external force
     attitude_bw: float = 12.0  # rad/s (roll, pitch)
     attitude_damping: float = 0.8
     yaw_bw: float = 4.0  # rad/s
     max_tilt_deg: float = 35.0  # the desired force is tilted at most this much
+    feedforward_lead: float = 0.1  # s, reference acceleration taken this far ahead (MinJerk)
 
 
 class GeometricController:
@@ -99,9 +113,35 @@ class GeometricController:
         self.f_max = params.max_thrust
         self.min_fz = 0.1 * m * GRAVITY
         self.integral = (0.0, 0.0, 0.0)
+        self.obs_tau, self.obs_limit = g.observer_tau, g.observer_limit
+        self.lead = g.feedforward_lead
+        self.reset()
 
     def reset(self) -> None:
         self.integral = (0.0, 0.0, 0.0)
+        self.disturbance = (0.0, 0.0, 0.0)  # estimated external force (drag, wind), N
+        self._last = None  # (velocity, rotor thrust force) at the previous update
+
+    def observe(self, vel, R, thrusts, dt: float) -> None:
+        """Update the external-force estimate: what accelerated the body beyond the rotors'
+        actual thrust (``data.act``, i.e. measured rotor speed) and gravity, low-pass filtered.
+
+        This is how a steady wind is rejected without an integrator's windup during moves.
+        """
+        total = thrusts[0] + thrusts[1] + thrusts[2] + thrusts[3]
+        force = (total * R[2], total * R[5], total * R[8] - self.mass * GRAVITY)
+        last, self._last = self._last, (vel, force)
+        if last is None:
+            return
+        (v0, f0), m = last, self.mass
+        a = dt / (self.obs_tau + dt)
+        lim = self.obs_limit
+        d = self.disturbance
+        est = [
+            d[k] + a * (m * (vel[k] - v0[k]) / dt - 0.5 * (force[k] + f0[k]) - d[k])
+            for k in range(3)
+        ]
+        self.disturbance = tuple(min(lim, max(-lim, v)) for v in est)
 
     def hover_thrust(self) -> float:
         return self.mass * GRAVITY / 4
@@ -120,9 +160,10 @@ class GeometricController:
             k = lim / math.sqrt(ix * ix + iy * iy + iz * iz)
             ix, iy, iz = ix * k, iy * k, iz * k
         self.integral = (ix, iy, iz)
-        fx = -kx * ex - kv * (vel[0] - ref_v[0]) + ix + m * ref_a[0]
-        fy = -kx * ey - kv * (vel[1] - ref_v[1]) + iy + m * ref_a[1]
-        fz = -kx * ez - kv * (vel[2] - ref_v[2]) + iz + m * (ref_a[2] + GRAVITY)
+        dx, dy, dz = self.disturbance
+        fx = -kx * ex - kv * (vel[0] - ref_v[0]) + ix + m * ref_a[0] - dx
+        fy = -kx * ey - kv * (vel[1] - ref_v[1]) + iy + m * ref_a[1] - dy
+        fz = -kx * ez - kv * (vel[2] - ref_v[2]) + iz + m * (ref_a[2] + GRAVITY) - dz
         if fz < self.min_fz:  # never ask to push downwards
             fz = self.min_fz
         horiz2 = fx * fx + fy * fy

@@ -125,8 +125,7 @@ class MuJoCoEnv(gym.Env):
         self._crash_reason = result.failure or (BUDGET_EXHAUSTED if crashed else None)
         m.position[0] = next_cell
         m.budget[0] = budget
-        m.steps[0] += 1
-        m.safety_flag[0] = m.rejected[0] = rejected
+        m.rejected[0] = rejected  # the safety flag of the observation
         m.landed[0] = landed
         m.crashed[0] = crashed
         m.seen_targets[0] += result.newly_seen

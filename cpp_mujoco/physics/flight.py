@@ -104,6 +104,7 @@ class Flight:
         self.bounds = (hx + config.cell_size, hy + config.cell_size, 3 * config.altitude + 5)
         self._warn_badqacc = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
         self.capacity = math.inf
+        self.trace: list[tuple[float, float, float, float]] | None = None  # (t, x, y, z) per tick
         self.reset(0, 0)
 
     # ------------------------------------------------------------------ episode state
@@ -147,14 +148,14 @@ class Flight:
         """Fly to the centre of ``cell``; done on arrival or at the time limit."""
         c = self.config
         goal = self.waypoint(cell)
-        ref = MinJerk(self.position, goal, c.move_duration)
+        ref = MinJerk(self.position, goal, c.move_duration, self.controller.lead)
         return self._fly(ref, goal, c.move_duration, c.move_time_limit, arrive=True)
 
     def hover(self, cell: int) -> ActionResult:
         """Hold over the centre of ``cell`` for one nominal move duration (a rejected action)."""
         c = self.config
         goal = self.waypoint(cell)
-        ref = MinJerk(self.position, goal, c.move_duration)
+        ref = MinJerk(self.position, goal, c.move_duration, self.controller.lead)
         return self._fly(ref, goal, c.move_duration, c.move_duration, arrive=False)
 
     def land(self, cell: int) -> ActionResult:
@@ -162,7 +163,7 @@ class Flight:
         c = self.config
         x, y, _ = self.waypoint(cell)
         flare = self.touch_z + 0.3
-        descent = MinJerk(self.position, (x, y, flare), c.land_duration)
+        descent = MinJerk(self.position, (x, y, flare), c.land_duration, self.controller.lead)
         speed = c.land_speed
 
         def ref(t: float):
@@ -181,20 +182,23 @@ class Flight:
         qpos, qvel, ctrl, act, xfrc = self._qpos, self._qvel, self._ctrl, self._act, self._xfrc
         controller, wind, energy_of = self.controller, self.wind, self.interval_energy
         geo_h2, geo_w2, inv_cs = self.geo.height / 2, self.geo.width / 2, 1 / self.config.cell_size
-        width, no_fly, n_cells = self.geo.width, self.no_fly, len(self.no_fly)
+        height, width, no_fly = self.geo.height, self.geo.width, self.no_fly
         bx, by, bz = self.bounds
         pos_tol2, vel_tol2 = self.config.arrive_pos_tol**2, self.config.arrive_vel_tol**2
         max_err2 = self.config.max_tracking_error**2
         zero = [0.0, 0.0, 0.0, 0.0]
+        trace = self.trace
         t = 0.0
         while True:
             qp = qpos.tolist()
             qv = qvel.tolist()
             pos, vel = qp[:3], qv[:3]
+            if trace is not None:
+                trace.append((d.time, *pos))
             R = quat_to_mat(*qp[3:])
             # ---- failure checks on the current state
             failure = None
-            if not all(map(math.isfinite, qp)) or self._warn_badqacc.number != self._bad0:
+            if not math.isfinite(sum(qp)) or self._warn_badqacc.number != self._bad0:
                 failure = "numerical divergence (NaN or unstable acceleration)"
             elif abs(pos[0]) > bx or abs(pos[1]) > by or pos[2] > bz:
                 failure = "left the arena"
@@ -203,7 +207,7 @@ class Flight:
             # no-fly airspace: the body's xy inside a no-fly cell (outside the grid counts)
             r = math.floor(geo_h2 - pos[1] * inv_cs)
             c = math.floor(pos[0] * inv_cs + geo_w2)
-            if not (0 <= r < geo_h2 * 2 and 0 <= c < width) or no_fly[r * width + c]:
+            if not (0 <= r < height and 0 <= c < width) or no_fly[r * width + c]:
                 self.nfz_violations += k
             p_ref, v_ref, a_ref = ref(t)
             if failure is None and self.motors_on:
@@ -243,8 +247,10 @@ class Flight:
                     break
             # ---- control, energy, wind, physics
             if self.motors_on:
+                thrusts = act.tolist()
+                controller.observe(vel, R, thrusts, dt)
                 f = controller(pos, vel, R, qv[3:], p_ref, v_ref, a_ref, dt)
-                e = energy_of(act.tolist(), f)
+                e = energy_of(thrusts, f)
                 if self.energy_used + e >= self.capacity:  # the battery empties in this tick
                     self.energy_used = self.capacity
                     self.motors_on = False

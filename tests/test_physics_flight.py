@@ -1,0 +1,176 @@
+"""Flying grid actions: hover, step response, scripted missions, camera coverage, energy."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import cpp_mujoco  # noqa: F401 - registers the envs
+from cpp_mujoco.grid.mdp import GridMDP
+from cpp_mujoco.grid.safety import EAST, LAND, NORTH, SOUTH, WEST
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.arena import GridGeometry, build_arena, compile_arena
+from cpp_mujoco.physics.calibration import calibration, unit_energy
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.env import MuJoCoEnv
+from cpp_mujoco.physics.flight import Flight
+
+CONFIG = PhysicsConfig()
+OPEN = GridMap.from_ascii(["TTTTT", "TTTTT", "TTLTT", "TTTTT", "TTTTT"], name="open")
+STRIP = GridMap.from_ascii(["TTTTTT", "LLTTTT", "TTTTTT"], name="strip")
+
+
+def make_flight(grid_map=OPEN, config=CONFIG) -> Flight:
+    return Flight(compile_arena(build_arena(grid_map, config)), grid_map, config)
+
+
+def test_hover_thrust_equals_weight():
+    f = make_flight()
+    f.reset(2, 2)
+    result = f.hover(12)
+    assert result.failure is None
+    total = f.data.actuator_force.sum()
+    assert total == pytest.approx(f.params.weight, rel=1e-3)
+    assert np.linalg.norm(f.position - f.waypoint(12)) < 0.02
+
+
+def test_one_cell_step_response():
+    f = make_flight()
+    f.reset(2, 2)
+    f.trace = []
+    result = f.move(13)  # east
+    assert result.arrived and result.failure is None
+    assert result.duration <= CONFIG.move_duration + 1.0
+    assert result.tracking_error < CONFIG.arrive_pos_tol
+    trace = np.array(f.trace)
+    goal_x = f.waypoint(13)[0]
+    overshoot = trace[:, 1].max() - goal_x
+    assert overshoot < 0.05 * CONFIG.cell_size
+    assert np.abs(trace[:, 2] - f.waypoint(13)[1]).max() < 0.05  # no cross-track wobble
+    assert np.abs(trace[:, 3] - f.cruise_z).max() < 0.1  # holds altitude
+
+
+def test_scripted_out_and_back_visits_exactly_the_commanded_cells_and_lands():
+    env = MuJoCoEnv(map=STRIP)
+    env.reset(seed=0, options={"start": (1, 1), "budget": 20})
+    env.unwrapped.flight.trace = trace = []
+    actions = [EAST, EAST, NORTH, SOUTH, WEST, WEST, LAND]
+    cells = [(1, 2), (1, 3), (0, 3), (1, 3), (1, 2), (1, 1), (1, 1)]
+    for a, cell in zip(actions, cells, strict=True):
+        _, _, terminated, _, info = env.step(a)
+        assert info["position"] == cell and not info["rejected"]
+    assert terminated and info["landed"] and not info["crashed"]
+    geo = GridGeometry(3, 6, CONFIG.cell_size)
+    visited = {geo.cell_of(x, y) for _, x, y, _ in trace}
+    assert visited == {(1, 1), (1, 2), (1, 3), (0, 3)}
+    # touchdown is a contact between the landing gear and the ground
+    data, model = env.data, env.model
+    ground = model.geom("ground").id
+    pairs = {(int(data.contact.geom1[i]), int(data.contact.geom2[i])) for i in range(data.ncon)}
+    touching = {model.geom(a if b == ground else b).name for a, b in pairs if ground in (a, b)}
+    assert touching and touching <= {"quadrotor/skid_l", "quadrotor/skid_r"}
+    assert data.qpos[2] < 0.3
+
+
+def test_camera_coverage_contains_grid_coverage():
+    rng = np.random.default_rng(3)
+    env = MuJoCoEnv(map="B")
+    grid = GridMDP(env.grid_map, 1)
+    start = tuple(int(v) for v in np.argwhere(env.grid_map.landing)[0])
+    env.reset(seed=0, options={"start": start, "budget": 40})
+    grid.reset(rng, start=start, budget=40)
+    for _ in range(14):
+        action = int(rng.integers(4))
+        obs, _, terminated, _, info = env.step(action)
+        grid.step(np.array([action]))
+        assert info["position"] == tuple(int(v) for v in divmod(grid.position[0], grid.width))
+        physics_cov = obs["coverage"].astype(bool).ravel()
+        assert not (grid.coverage[0] & ~physics_cov).any()
+        assert not terminated
+    assert info["nfz_violations"] == 0
+
+
+def test_one_budget_unit_per_nominal_move_and_more_in_a_headwind():
+    cal = calibration(CONFIG)
+    unit = unit_energy(CONFIG)
+    assert cal["move_energy_max_j"] / cal["move_energy_min_j"] < 1.01
+    assert 0.8 < cal["hover_energy_j"] / unit < 1.0  # hovering a move's duration costs a bit less
+
+    def fly(actions, **wind):
+        env = MuJoCoEnv(map=OPEN, **wind)
+        env.reset(seed=0, options={"start": (2, 2), "budget": 10})
+        for a in actions:
+            *_, info = env.step(a)
+        return info
+
+    calm = fly((NORTH, NORTH, SOUTH, SOUTH))
+    assert calm["energy_used_j"] / unit == pytest.approx(4.0, abs=0.05)
+    assert calm["budget"] in (10 - 4, 10 - 5)
+    # an 8 m/s wind from the north: the same path costs more, the headwind leg most
+    windy = fly((NORTH, NORTH, SOUTH, SOUTH), wind_speed=8.0, wind_direction=0.0)
+    assert windy["energy_used_j"] > 1.01 * calm["energy_used_j"]
+    headwind = fly((NORTH,), wind_speed=8.0, wind_direction=0.0)["energy_used_j"]
+    assert headwind > 1.02 * fly((NORTH,))["energy_used_j"]
+
+
+def test_calibration_cache_round_trip(tmp_path, monkeypatch):
+    from cpp_mujoco.physics import calibration as cal_module
+
+    monkeypatch.setenv("CPP_MUJOCO_CACHE", str(tmp_path))
+    monkeypatch.setattr(cal_module, "_MEMO", {})
+    config = PhysicsConfig(move_duration=2.5)
+    first = cal_module.unit_energy(config)
+    files = list((tmp_path / "calibration").glob("*.json"))
+    assert len(files) == 1
+    monkeypatch.setattr(cal_module, "calibrate", lambda c: pytest.fail("should read the cache"))
+    monkeypatch.setattr(cal_module, "_MEMO", {})
+    assert cal_module.unit_energy(config) == first
+    # weather does not change the unit
+    assert cal_module.unit_energy(PhysicsConfig(move_duration=2.5, wind_speed=5.0)) == first
+
+
+def test_random_actions_never_enter_no_fly_airspace():
+    grid_map = GridMap.from_ascii(["TNT.", "LTNT", "TTYT", "LN.T"], name="maze")
+    env = MuJoCoEnv(map=grid_map)
+    rng = np.random.default_rng(7)
+    for episode in range(3):
+        env.reset(seed=episode, options={"budget": 12})
+        terminated, rejected = False, 0
+        while not terminated:
+            _, _, terminated, _, info = env.step(int(rng.integers(4)))
+            rejected += info["rejected"]
+            assert info["nfz_violations"] == 0
+            assert not grid_map.nfz[info["position"]]
+        assert rejected > 0  # the safety controller was exercised
+
+
+def test_emptied_battery_ends_in_a_crash():
+    env = gym.make("cpp_mujoco/MuJoCo-v0", map=OPEN, wind_speed=8.0, wind_direction=0.0)
+    env.reset(seed=0, options={"start": (2, 2), "budget": 1})
+    obs, reward, terminated, truncated, info = env.step(NORTH)  # headwind: > 1 unit
+    assert terminated and not truncated
+    assert info["crashed"] and not info["landed"]
+    assert info["crash_reason"].startswith("battery empty")
+    assert info["budget"] == 0
+    newly_seen = int((obs["coverage"].astype(bool) & OPEN.target).sum())
+    assert reward == pytest.approx(0.4 * newly_seen - 0.2 - 150.0)
+    assert env.unwrapped.data.qpos[2] < 1.0  # it fell to the ground
+
+
+def test_budget_reaching_zero_unlanded_is_a_crash():
+    env = MuJoCoEnv(map=OPEN)
+    env.reset(seed=0, options={"start": (2, 2), "budget": 1})
+    obs, reward, terminated, _, info = env.step(NORTH)  # about one unit: floor → 0, or cut
+    assert terminated and info["crashed"] and info["budget"] == 0
+    newly_seen = int((obs["coverage"].astype(bool) & OPEN.target).sum())
+    assert reward == pytest.approx(0.4 * newly_seen - 0.2 - 150.0)
+
+
+def test_physical_failure_is_a_crash_not_an_exception():
+    env = MuJoCoEnv(map=OPEN)
+    env.reset(seed=0, options={"start": (2, 2), "budget": 5})
+    env.data.qpos[3:7] = (0.0, 1.0, 0.0, 0.0)  # upside down
+    _, reward, terminated, _, info = env.step(EAST)
+    assert terminated and info["crashed"] and info["crash_reason"] == "flipped over"
+    assert math.isfinite(reward)

@@ -1,0 +1,159 @@
+"""The quadrotor model, the arena and the pure geometry/energy pieces of the physics backend."""
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+from dm_control import mjcf
+
+from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.physics.arena import GridGeometry, build_arena, camera_fovy, compile_arena
+from cpp_mujoco.physics.camera import cells_in_footprint, corner_rays, footprint, inside_polygon
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.energy import IntervalEnergy, PowerModel
+from cpp_mujoco.physics.quadrotor import QuadrotorParams
+from cpp_mujoco.physics.wind import Wind
+
+CONFIG = PhysicsConfig()
+
+
+@pytest.fixture(scope="module")
+def model():
+    return compile_arena(build_arena(load_map("A"), CONFIG))
+
+
+@pytest.fixture(scope="module")
+def params(model):
+    return QuadrotorParams.from_model(model)
+
+
+def test_mujoco_dm_control_pin_builds_and_steps():
+    root = mjcf.RootElement(model="tiny")
+    body = root.worldbody.add("body", name="ball", pos=(0, 0, 1))
+    body.add("freejoint")
+    body.add("geom", type="sphere", size=(0.1,), mass=1.0)
+    physics = mjcf.Physics.from_mjcf_model(root)
+    for _ in range(100):
+        physics.step()
+    assert physics.data.time == pytest.approx(100 * physics.model.opt.timestep)
+    assert physics.named.data.xpos["ball"][2] < 1.0  # it fell
+
+
+def test_arena_compiles_through_dm_control():
+    arena = build_arena(GridMap.from_ascii(["LTN", "..Y"]), CONFIG)
+    physics = mjcf.Physics.from_mjcf_model(arena)
+    physics.step()
+    names = [physics.model.id2name(i, "geom") for i in range(physics.model.ngeom)]
+    assert {"tile_0_0", "nfz_0_2", "nfz_1_2", "quadrotor/skid_l"} <= set(names)
+    nfz = physics.model.name2id("nfz_0_2", "geom")
+    assert physics.model.geom_contype[nfz] == 0 and physics.model.geom_conaffinity[nfz] == 0
+    assert physics.model.geom_rgba[nfz][3] < 0.5  # translucent
+
+
+def test_realistic_airframe(params):
+    assert 1.0 < params.mass < 2.5
+    assert 2.0 <= params.thrust_to_weight <= 4.0
+    assert 0.01 <= params.motor_tau <= 0.1
+
+
+def test_allocation_full_rank_and_diagonal_rotors_spin_alike(params):
+    A = params.allocation_matrix()
+    assert np.linalg.matrix_rank(A) == 4
+    xy = params.rotor_xy
+    for i in range(4):
+        opposite = int(np.argmin(np.linalg.norm(xy + xy[i], axis=1)))  # the diagonal partner
+        assert np.allclose(xy[opposite], -xy[i])
+        assert np.sign(params.yaw_coef[opposite]) == np.sign(params.yaw_coef[i])
+    assert params.yaw_coef.sum() == pytest.approx(0.0)
+
+
+def test_mujoco_applies_the_allocation_matrix(model, params):
+    """Each rotor's generalized force in MuJoCo equals its allocation column (level attitude)."""
+    data = mujoco.MjData(model)
+    data.qpos[2] = 5.0
+    A = params.allocation_matrix()
+    for i in range(4):
+        data.act[:] = 0.0
+        data.act[i] = 1.0
+        mujoco.mj_forward(model, data)
+        f = data.qfrc_actuator
+        assert np.allclose([f[2], f[3], f[4], f[5]], A[:, i], atol=1e-9)
+
+
+def test_camera_fovy_gives_three_cells_at_altitude(model):
+    cam = model.camera("quadrotor/downward").id
+    assert model.cam_fovy[cam] == pytest.approx(camera_fovy(CONFIG, 3))
+    half = math.radians(model.cam_fovy[cam]) / 2
+    assert CONFIG.altitude * math.tan(half) == pytest.approx(1.5 * CONFIG.cell_size)
+
+
+def test_level_footprint_is_the_three_by_three_block():
+    geo = GridGeometry(8, 8, CONFIG.cell_size)
+    x, y = geo.cell_center(3, 4)
+    poly = footprint((x, y, CONFIG.altitude), np.eye(3).ravel(), corner_rays(camera_fovy(CONFIG)))
+    cells = sorted(cells_in_footprint(poly, geo))
+    assert cells == sorted(r * 8 + c for r in (2, 3, 4) for c in (3, 4, 5))
+
+
+@pytest.mark.parametrize("theta_deg", [0.0, 10.0, 25.0])
+def test_tilted_footprint_shifts_as_geometry_says(theta_deg):
+    """A camera pitched by θ about the world y axis: the image edges along x land at
+    h·tan(±α − θ) (α the half-angle) and the footprint is a trapezoid widening away from nadir."""
+    h, fovy = 6.0, 90.0
+    th = math.radians(theta_deg)
+    rot = np.array([[math.cos(th), 0, math.sin(th)], [0, 1, 0], [-math.sin(th), 0, math.cos(th)]])
+    poly = np.array(footprint((1.0, 2.0, h), rot.ravel(), corner_rays(fovy)))
+    a = math.radians(fovy) / 2
+    assert poly[:, 0].min() == pytest.approx(1.0 + h * math.tan(-a - th))
+    assert poly[:, 0].max() == pytest.approx(1.0 + h * math.tan(a - th))
+    for (cx, cy), sx in zip(poly, (-1, 1, 1, -1), strict=True):
+        expect_y = h * math.tan(a) / (sx * math.tan(a) * math.sin(th) + math.cos(th))
+        assert abs(cy - 2.0) == pytest.approx(expect_y)
+        assert cx == pytest.approx(1.0 + h * math.tan(sx * a - th))
+    assert inside_polygon(list(map(tuple, poly)), 1.0 - h * math.tan(th), 2.0)  # optical axis
+
+
+def test_footprint_rejects_horizon_frames():
+    rot = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=float)  # looking sideways
+    assert footprint((0, 0, 6), rot.ravel(), corner_rays(90)) is None
+
+
+def test_interval_energy_is_the_sum_over_physics_steps(model, params):
+    """The closed-form per-step thrusts equal MuJoCo's actuator forces step by step."""
+    power = PowerModel(params)
+    k = 5
+    energy = IntervalEnergy(power, model.opt.timestep, params.motor_tau, k)
+    data = mujoco.MjData(model)
+    data.qpos[2] = 5.0
+    data.act[:] = [3.0, 4.0, 5.0, 6.0]
+    ctrl = [6.0, 1.0, 3.0, 8.0]
+    data.ctrl[:] = ctrl
+    expected = energy(data.act.tolist(), ctrl)
+    total = 0.0
+    for _ in range(k):
+        mujoco.mj_step(model, data)
+        total += power.power(data.actuator_force.tolist()) * model.opt.timestep
+    assert total == pytest.approx(expected, rel=1e-9)
+
+
+def test_hover_power_is_momentum_theory(params):
+    power = PowerModel(params)
+    per_rotor = params.weight / 4
+    disk = math.pi * params.rotor_radius**2
+    ideal = 4 * per_rotor**1.5 / math.sqrt(2 * 1.225 * disk)
+    assert power.power([per_rotor] * 4) == pytest.approx(
+        ideal / params.power_efficiency + params.avionics_power
+    )
+
+
+def test_wind_direction_and_gust_statistics():
+    north = Wind(PhysicsConfig(wind_speed=5.0, wind_direction=0.0), 0.02, 0.1)
+    assert north.steady == pytest.approx((0.0, -5.0, 0.0))  # from the north, blowing south
+    fx, fy, _ = north.drag((0.0, 2.0, 0.0), north.steady)  # flying north into it
+    assert fx == pytest.approx(0.0) and fy < 0.0
+    gusty = Wind(PhysicsConfig(gust_std=2.0, gust_tau=1.0), 0.02, 0.1)
+    gusty.reset(np.random.default_rng(0))
+    samples = np.array([gusty.velocity()[:2] for _ in range(50_000)])
+    assert samples.std(axis=0) == pytest.approx([2.0, 2.0], rel=0.15)
+    assert abs(samples.mean()) < 0.5
