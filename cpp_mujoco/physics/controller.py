@@ -129,21 +129,24 @@ class GeometricController:
         This is how a steady wind is rejected without an integrator's windup during moves.
         """
         total = thrusts[0] + thrusts[1] + thrusts[2] + thrusts[3]
-        force = (total * R[2], total * R[5], total * R[8] - self.mass * GRAVITY)
-        last, self._last = self._last, (vel, force)
+        m = self.mass
+        f0, f1, f2 = total * R[2], total * R[5], total * R[8] - m * GRAVITY
+        last, self._last = self._last, (vel, f0, f1, f2)
         if last is None:
             return
-        (v0, f0), m = last, self.mass
-        a = dt / (self.obs_tau + dt)
-        lim = self.obs_limit
-        d = self.disturbance
-        est = [
-            d[k] + a * (m * (vel[k] - v0[k]) / dt - 0.5 * (force[k] + f0[k]) - d[k])
-            for k in range(3)
-        ]
-        self.disturbance = tuple(min(lim, max(-lim, v)) for v in est)
+        v, g0, g1, g2 = last
+        a, lim, (d0, d1, d2) = dt / (self.obs_tau + dt), self.obs_limit, self.disturbance
+        k = m / dt
+        d0 += a * (k * (vel[0] - v[0]) - 0.5 * (f0 + g0) - d0)
+        d1 += a * (k * (vel[1] - v[1]) - 0.5 * (f1 + g1) - d1)
+        d2 += a * (k * (vel[2] - v[2]) - 0.5 * (f2 + g2) - d2)
+        if d0 * d0 + d1 * d1 + d2 * d2 > lim * lim:
+            scale = lim / math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            d0, d1, d2 = d0 * scale, d1 * scale, d2 * scale
+        self.disturbance = (d0, d1, d2)
 
     def hover_thrust(self) -> float:
+        """Per-rotor thrust that holds the weight."""
         return self.mass * GRAVITY / 4
 
     def __call__(self, pos, vel, R, omega, ref_p, ref_v, ref_a, dt: float) -> list[float]:

@@ -187,8 +187,8 @@ class Flight:
         pos_tol2, vel_tol2 = self.config.arrive_pos_tol**2, self.config.arrive_vel_tol**2
         max_err2 = self.config.max_tracking_error**2
         zero = [0.0, 0.0, 0.0, 0.0]
-        trace = self.trace
-        t = 0.0
+        trace, warn, bad0, cos_flip = self.trace, self._warn_badqacc, self._bad0, self.cos_flip
+        step, t = mujoco.mj_step, 0.0
         while True:
             qp = qpos.tolist()
             qv = qvel.tolist()
@@ -198,11 +198,11 @@ class Flight:
             R = quat_to_mat(*qp[3:])
             # ---- failure checks on the current state
             failure = None
-            if not math.isfinite(sum(qp)) or self._warn_badqacc.number != self._bad0:
+            if not math.isfinite(sum(qp)) or warn.number != bad0:
                 failure = "numerical divergence (NaN or unstable acceleration)"
             elif abs(pos[0]) > bx or abs(pos[1]) > by or pos[2] > bz:
                 failure = "left the arena"
-            elif R[8] < self.cos_flip and self.motors_on:
+            elif R[8] < cos_flip and self.motors_on:
                 failure = "flipped over"
             # no-fly airspace: the body's xy inside a no-fly cell (outside the grid counts)
             r = math.floor(geo_h2 - pos[1] * inv_cs)
@@ -217,7 +217,7 @@ class Flight:
             if failure is not None:
                 out.failure = failure
                 break
-            if d.time >= self.next_frame:
+            if t0 + t >= self.next_frame:
                 out.newly_seen += self.frame()
             # ---- done?
             if not self.motors_on:
@@ -262,7 +262,7 @@ class Flight:
             ctrl[:] = f
             w = wind.velocity()
             xfrc[:3] = wind.drag(vel, w)
-            mujoco.mj_step(m, d, nstep=k)
+            step(m, d, k)
             t += dt
         out.newly_seen += self.frame()
         out.duration = self.time - t0
