@@ -13,6 +13,8 @@ import time
 import mujoco
 import numpy as np
 
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.calibration import calibration
 from cpp_mujoco.physics.env import MuJoCoEnv
 
 
@@ -62,8 +64,48 @@ def benchmark_physics(seconds: float = 5.0, map: str = "A", seed: int = 0) -> di
     }
 
 
-if __name__ == "__main__":
-    import json
-    import sys
+def flight_figures(wind_speed: float = 8.0) -> dict:
+    """The physical figures quoted in ``docs/physics.md``: calibration, a one-cell step response,
+    landing energy and the headwind energy ratios (default configuration)."""
+    open_map = GridMap.from_ascii(["TTTTT", "TTTTT", "TTLTT", "TTTTT", "TTTTT"], name="open")
 
-    print(json.dumps(benchmark_physics(float(sys.argv[1]) if len(sys.argv) > 1 else 5.0), indent=1))
+    def fly(actions, trace=False, **kwargs):
+        env = MuJoCoEnv(map=open_map, **kwargs)
+        env.reset(seed=0, options={"start": (2, 2), "budget": 10})
+        env.flight.trace = [] if trace else None
+        for a in actions:
+            *_, info = env.step(a)
+        return env, info
+
+    env, info = fly((1,), trace=True)  # one cell east
+    tr = np.array(env.flight.trace)
+    goal = env.flight.waypoint(13)
+    speed = np.linalg.norm(np.diff(tr[:, 1:4], axis=0), axis=1) / env.flight.dt
+    unit = env.unit_energy
+    _, land = fly((4,))
+    head = {w: fly((0,), wind_speed=w)[1]["energy_used_j"] for w in (0.0, wind_speed)}
+    loop = {w: fly((0, 0, 2, 2), wind_speed=w)[1]["energy_used_j"] for w in (0.0, wind_speed)}
+    return {
+        "calibration": calibration(env.config),
+        "step_time_s": info["flight_time_s"],
+        "step_final_error_m": info["tracking_error_m"],
+        "step_overshoot_m": float(tr[:, 1].max() - goal[0]),
+        "step_max_altitude_error_m": float(np.abs(tr[:, 3] - goal[2]).max()),
+        "step_peak_speed_m_s": float(speed.max()),
+        "land_energy_units": land["energy_used_j"] / unit,
+        "land_time_s": land["flight_time_s"],
+        f"headwind_{wind_speed:g}_move_ratio": head[wind_speed] / head[0.0],
+        f"headwind_{wind_speed:g}_out_and_back_ratio": loop[wind_speed] / loop[0.0],
+    }
+
+
+if __name__ == "__main__":
+    import argparse
+    import json
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("seconds", nargs="?", type=float, default=5.0)
+    parser.add_argument("--figures", action="store_true", help="physical figures instead")
+    args = parser.parse_args()
+    result = flight_figures() if args.figures else benchmark_physics(args.seconds)
+    print(json.dumps(result, indent=1))
