@@ -79,11 +79,11 @@ class Gains:
     position_integral: float = 0.0  # 1/s, integral gain relative to the proportional gain
     integral_limit: float = 3.0  # N, anti-windup bound of the integral force
     observer_tau: float = 0.15  # s, low-pass time constant of the external-force observer
-    observer_limit: float = 8.0  # N, bound of the estimated external force
+    observer_limit: float = 12.0  # N, bound of the estimated external force (≈ 0.8 weight)
     attitude_bw: float = 12.0  # rad/s (roll, pitch)
     attitude_damping: float = 0.8
     yaw_bw: float = 4.0  # rad/s
-    max_tilt_deg: float = 35.0  # the desired force is tilted at most this much
+    max_tilt_deg: float = 45.0  # the desired force is tilted at most this much
     feedforward_lead: float = 0.1  # s, reference acceleration taken this far ahead (MinJerk)
 
 
