@@ -1,0 +1,72 @@
+"""Training throughput: gradient updates/s and environment steps/s of the DDQN training loop."""
+
+from __future__ import annotations
+
+import tempfile
+import time
+
+import torch
+
+from cpp_mujoco.agent.config import TrainConfig
+
+
+def benchmark_training(
+    map_name: str = "A", updates: int = 100, device: str = "cpu", **overrides
+) -> dict:
+    """Time the training loop (no evaluation, no checkpoints) on ``map_name``.
+
+    Returns ``updates_per_s`` and ``env_steps_per_s`` of the full loop (collection + learning),
+    ``collect_env_steps_per_s`` of collection alone (batched forward + soft-max + env step) and
+    ``update_ms`` for one gradient update at the configured batch size.
+    """
+    from cpp_mujoco.agent.train import Trainer
+
+    config = TrainConfig(
+        map=map_name,
+        device=device,
+        total_updates=updates,
+        eval_every=10**9,
+        checkpoint_every=10**9,
+        **overrides,
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        trainer = Trainer(config, tmp)
+        # collection alone (this also fills the replay memory past learning_starts)
+        t0 = time.perf_counter()
+        while len(trainer.replay) < max(config.learning_starts, config.batch_size * 4):
+            trainer.collect()
+        collect_s = time.perf_counter() - t0
+        collect_rate = trainer.env_steps / collect_s
+        for _ in range(3):  # warm-up
+            trainer.update()
+        t0 = time.perf_counter()
+        for _ in range(10):
+            trainer.update()
+        update_ms = (time.perf_counter() - t0) / 10 * 1000
+        # the loop as it trains: collect + updates_per_step updates
+        u0, s0, t0 = trainer.updates, trainer.env_steps, time.perf_counter()
+        while trainer.updates - u0 < updates:
+            trainer.collect()
+            trainer.update_credit += config.updates_per_step
+            while trainer.update_credit >= 1.0:
+                trainer.update_credit -= 1.0
+                trainer.update()
+        dt = time.perf_counter() - t0
+    return {
+        "map": map_name,
+        "device": device,
+        "threads": torch.get_num_threads(),
+        "num_envs": config.num_envs,
+        "batch_size": config.batch_size,
+        "updates_per_step": config.updates_per_step,
+        "updates_per_s": (trainer.updates - u0) / dt,
+        "env_steps_per_s": (trainer.env_steps - s0) / dt,
+        "collect_env_steps_per_s": collect_rate,
+        "update_ms": update_ms,
+    }
+
+
+if __name__ == "__main__":
+    import json
+
+    print(json.dumps(benchmark_training(), indent=2))

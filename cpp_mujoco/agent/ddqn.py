@@ -1,0 +1,85 @@
+"""Double DQN (van Hasselt et al. 2016) as the paper uses it (§III-B/C), in a few readable pieces.
+
+    Y = R + γⁿ · Q_θ̄(s′, argmax_a′ Q_θ(s′, a′))      (stop-gradient; Y = R at a termination)
+    L = mean over the minibatch of ℓ(Q_θ(s, a) − Y)   (ℓ = square (paper) or Huber)
+    θ̄ ← (1 − τ) θ̄ + τ θ                              (after every gradient step)
+
+With ``n_step = 1`` R is the reward and γⁿ = γ — exactly the paper's target.
+Exploration samples π(a|s) ∝ exp(Q_θ(s, a)/β); evaluation is greedy.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+
+@torch.no_grad()
+def ddqn_target(
+    online: nn.Module,
+    target: nn.Module,
+    next_grid: torch.Tensor,
+    next_budget: torch.Tensor,
+    returns: torch.Tensor,
+    discount: torch.Tensor,
+) -> torch.Tensor:
+    """Y = R + discount · Q_θ̄(s′, argmax_a′ Q_θ(s′, a′)); discount = γⁿ, or 0 if terminated."""
+    best = online(next_grid, next_budget).argmax(dim=1, keepdim=True)
+    value = target(next_grid, next_budget).gather(1, best).squeeze(1)
+    return returns + discount * value
+
+
+@torch.no_grad()
+def soft_update(target: nn.Module, online: nn.Module, tau: float) -> None:
+    """θ̄ ← (1 − τ) θ̄ + τ θ for every parameter (and buffer)."""
+    t_params = [p for p in target.parameters()] + [
+        b for b in target.buffers() if b.is_floating_point()
+    ]
+    o_params = [p for p in online.parameters()] + [
+        b for b in online.buffers() if b.is_floating_point()
+    ]
+    torch._foreach_lerp_(t_params, o_params, tau)
+
+
+@torch.no_grad()
+def softmax_actions(
+    q: torch.Tensor, beta: float, generator: torch.Generator | None = None
+) -> torch.Tensor:
+    """Sample one action per row from π(a|s) = softmax(Q(s, ·)/β)."""
+    probs = torch.softmax(q / beta, dim=1)
+    return torch.multinomial(probs, 1, generator=generator).squeeze(1)
+
+
+def td_loss(q_taken: torch.Tensor, y: torch.Tensor, kind: str = "mse") -> torch.Tensor:
+    if kind == "mse":
+        return F.mse_loss(q_taken, y)
+    if kind == "huber":
+        return F.smooth_l1_loss(q_taken, y)
+    raise ValueError(f"unknown loss {kind!r}")
+
+
+def ddqn_update(
+    online: nn.Module,
+    target: nn.Module,
+    optimizer: torch.optim.Optimizer,
+    batch: dict[str, torch.Tensor],
+    *,
+    tau: float,
+    loss_kind: str = "mse",
+    max_grad_norm: float = 0.0,
+) -> dict[str, float]:
+    """One gradient step on a minibatch, then the soft target update. Returns loss and mean Q."""
+    y = ddqn_target(
+        online, target, batch["next_grid"], batch["next_budget"], batch["return"], batch["discount"]
+    )
+    q = online(batch["grid"], batch["budget"])
+    q_taken = q.gather(1, batch["action"][:, None]).squeeze(1)
+    loss = td_loss(q_taken, y, loss_kind)
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    if max_grad_norm > 0:
+        nn.utils.clip_grad_norm_(online.parameters(), max_grad_norm)
+    optimizer.step()
+    soft_update(target, online, tau)
+    return {"loss": float(loss.detach()), "q": float(q_taken.detach().mean())}
