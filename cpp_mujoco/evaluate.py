@@ -18,7 +18,7 @@ from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.maps import GridMap, load_map
 
 PAPER_LANDING_RATIO = {"A": 0.9937, "B": 0.9978, "C": 0.9826}
-BACKENDS = ("grid",)
+BACKENDS = ("grid", "mujoco")
 
 
 class Policy(Protocol):
@@ -41,6 +41,7 @@ class EvaluationResult:
     returns: np.ndarray  # (E,) undiscounted return
     trajectories: np.ndarray  # (E, T+1) flat cells visited, -1 after the end
     upper_bound: dict[int, float] = field(default_factory=dict)  # budget → coverage bound
+    physics: dict[str, np.ndarray] = field(default_factory=dict)  # per-episode physical figures
 
     @property
     def landing_ratio(self) -> float:
@@ -68,6 +69,15 @@ class EvaluationResult:
         return rows
 
     def summary(self) -> dict[str, object]:
+        physics = {}
+        if self.physics:
+            moves = np.maximum(self.steps, 1)
+            physics = {
+                "energy_per_action_j": float((self.physics["energy_used_j"] / moves).mean()),
+                "nfz_violations": int(self.physics["nfz_violations"].sum()),
+                "crashes": int(self.physics["crashed"].sum()),
+                "mean_flight_time_s": float(self.physics["flight_time_s"].mean()),
+            }
         return {
             "map": self.map_name,
             "policy": self.policy_name,
@@ -77,6 +87,7 @@ class EvaluationResult:
             "coverage_ratio": self.coverage_ratio,
             "mean_return": float(self.returns.mean()),
             "mean_steps": float(self.steps.mean()),
+            **physics,
         }
 
     def to_json(self, path: str | os.PathLike) -> None:
@@ -125,8 +136,15 @@ def evaluate(
     budgets: Iterable[int] | None = None,
     config: GridConfig | None = None,
     policy_name: str | None = None,
+    workers: int | None = None,
+    progress: bool = False,
+    env_kwargs: dict | None = None,
 ) -> EvaluationResult:
-    """Run the full protocol for ``policy`` on ``map``; budgets default to the config's range."""
+    """Run the full protocol for ``policy`` on ``map``; budgets default to the config's range.
+
+    ``backend="mujoco"`` flies every episode in physics, over ``workers`` processes (default:
+    all cores), with ``env_kwargs`` for the physics env (``wind_speed=6`` …).
+    """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; available: {', '.join(BACKENDS)}")
     grid_map = load_map(map)
@@ -134,6 +152,16 @@ def evaluate(
     if budgets is None:
         budgets = range(config.min_budget, config.max_budget + 1)
     starts, budget_per_episode = protocol_episodes(grid_map, budgets)
+    name = policy_name or getattr(policy, "name", type(policy).__name__)
+    bounds = {
+        int(b): coverage_upper_bound(grid_map, int(b), config.fov_side)
+        for b in set(budget_per_episode.tolist())
+    }
+    if backend == "mujoco":
+        return _evaluate_physics(
+            policy, grid_map, starts, budget_per_episode, name, bounds, workers, progress,
+            {**(env_kwargs or {}), "fov_side": config.fov_side},
+        )  # fmt: skip
     mdp = GridMDP(grid_map, len(starts), config)
     mdp.reset(np.random.default_rng(0), start=starts, budget=budget_per_episode)
     returns = np.zeros(len(starts))
@@ -146,7 +174,7 @@ def evaluate(
         trail.append(np.where(active, mdp.position, -1))
     return EvaluationResult(
         map_name=grid_map.name,
-        policy_name=policy_name or getattr(policy, "name", type(policy).__name__),
+        policy_name=name,
         backend=backend,
         starts=starts,
         budgets=budget_per_episode,
@@ -155,8 +183,38 @@ def evaluate(
         steps=mdp.steps.copy(),
         returns=returns,
         trajectories=np.stack(trail, axis=1),
-        upper_bound={
-            int(b): coverage_upper_bound(grid_map, int(b), config.fov_side)
-            for b in set(budget_per_episode.tolist())
+        upper_bound=bounds,
+    )
+
+
+def _evaluate_physics(
+    policy, grid_map, starts, budgets, name, bounds, workers, progress, env_kwargs
+):
+    from cpp_mujoco.physics.episodes import fly_episodes
+
+    records = fly_episodes(policy, grid_map, starts, budgets, workers, progress, env_kwargs)
+    length = max(len(r.cells) for r in records)
+    trajectories = np.full((len(records), length), -1, dtype=np.int64)
+    for i, r in enumerate(records):
+        trajectories[i, : len(r.cells)] = r.cells
+    column = lambda key, dtype=float: np.array([getattr(r, key) for r in records], dtype=dtype)  # noqa: E731
+    return EvaluationResult(
+        map_name=grid_map.name,
+        policy_name=name,
+        backend="mujoco",
+        starts=starts,
+        budgets=budgets,
+        landed=column("landed", bool),
+        coverage=column("coverage"),
+        steps=column("steps", np.int64),
+        returns=column("total_reward"),
+        trajectories=trajectories,
+        upper_bound=bounds,
+        physics={
+            "energy_used_j": column("energy_used_j"),
+            "flight_time_s": column("flight_time_s"),
+            "nfz_violations": column("nfz_violations", np.int64),
+            "crashed": column("crashed", bool),
+            "crash_reason": np.array([r.crash_reason or "" for r in records]),
         },
     )

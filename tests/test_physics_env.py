@@ -96,3 +96,14 @@ def test_benchmark_reports_rates():
     assert result["overhead_ratio"] == pytest.approx(
         result["env_steps_per_s"] / result["raw_steps_per_s"]
     )
+
+
+def test_landing_with_the_last_budget_unit_succeeds_as_on_the_grid():
+    """Every grid action costs one unit; in calm air a landing must cost less than one."""
+    grid_map = GridMap.from_ascii(["LT...", "L...."])
+    env = gym.make("cpp_mujoco/MuJoCo-v0", map=grid_map).unwrapped
+    env.reset(options={"start": (0, 0), "budget": 3})
+    for action in (1, 3, 4):  # east, back west, land with the last unit
+        _, _, terminated, _, info = env.step(action)
+    assert terminated and info["landed"] and not info["crashed"]
+    assert info["energy_used_j"] < 3 * env.unit_energy

@@ -34,8 +34,10 @@ class PhysicsConfig:
     move_time_limit: float = 8.0  # s, a move that has not arrived by then ends anyway
     arrive_pos_tol: float = 0.2  # m, arrival: distance to the cell centre …
     arrive_vel_tol: float = 0.2  # m/s, … and speed below these
-    land_duration: float = 3.0  # s, min-jerk descent to just above the ground (≈ one move's energy)
-    land_speed: float = 0.5  # m/s, final sink rate until the landing gear touches
+    # a landing must cost less than one budget unit, as every grid action costs one: an agent
+    # that lands with its last unit must not run dry in the descent (2.2 s + 0.8 m/s ≈ 0.87 units)
+    land_duration: float = 2.2  # s, min-jerk descent to just above the ground
+    land_speed: float = 0.8  # m/s, final sink rate until the landing gear touches
     land_time_limit: float = 12.0  # s, no touchdown by then is a failure
     fall_time_limit: float = 5.0  # s, how long a motor-cut fall is simulated before the crash
     # --- failure detection

@@ -105,6 +105,8 @@ class Flight:
         self._warn_badqacc = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
         self.capacity = math.inf
         self.trace: list[tuple[float, float, float, float]] | None = None  # (t, x, y, z) per tick
+        # called with the flight after every camera frame: recorders and video cameras hook here
+        self.on_frame: Callable[[Flight], None] | None = None
         self.reset(0, 0)
 
     # ------------------------------------------------------------------ episode state
@@ -300,12 +302,13 @@ class Flight:
         self.frames += 1
         poly = footprint(self._cam_pos.tolist(), self._cam_mat.tolist(), self.rays)
         self.last_footprint = poly
-        if poly is None:
-            return 0
-        cells = cells_in_footprint(poly, self.geo)
-        if not cells:
-            return 0
-        seen = self._seen
-        seen[:] = False
-        seen[0, cells] = True
-        return int(mark_seen(self.coverage, seen, self.target)[0])
+        newly = 0
+        cells = cells_in_footprint(poly, self.geo) if poly is not None else []
+        if cells:
+            seen = self._seen
+            seen[:] = False
+            seen[0, cells] = True
+            newly = int(mark_seen(self.coverage, seen, self.target)[0])
+        if self.on_frame is not None:
+            self.on_frame(self)
+        return newly
