@@ -63,4 +63,29 @@ def benchmark_grid(map_name: str = "A", seconds: float = 3.0, num_envs: int = 10
     return result
 
 
-SECTIONS: dict[str, Callable[[], dict]] = {"grid": benchmark_grid}
+def benchmark_physics() -> dict:
+    from cpp_mujoco.physics.benchmark import benchmark_physics as run
+
+    return run(seconds=5.0)
+
+
+def benchmark_training() -> dict:
+    from cpp_mujoco.agent.benchmark import benchmark_training as run
+
+    return run(updates=100)
+
+
+def benchmark_review() -> dict:
+    from cpp_mujoco.review.benchmark import benchmark_review as run
+    from cpp_mujoco.review.rendering import configure_gl
+
+    configure_gl()
+    return run()
+
+
+SECTIONS: dict[str, Callable[[], dict]] = {
+    "grid": benchmark_grid,
+    "physics": benchmark_physics,
+    "training": benchmark_training,
+    "review": benchmark_review,
+}

@@ -57,7 +57,9 @@ def _policies(args):
     return chosen
 
 
-def run_evaluation(maps, policies, out: Path, backend: str = "grid", verbose: bool = True):
+def run_evaluation(
+    maps, policies, out: Path, backend: str = "grid", verbose: bool = True, **evaluate_kwargs
+):
     """Evaluate every policy on every map; write JSON and figures; print the summary table."""
     from cpp_mujoco.evaluate import PAPER_LANDING_RATIO, evaluate
     from cpp_mujoco.review.plots import coverage_figure, trajectories_figure
@@ -68,7 +70,9 @@ def run_evaluation(maps, policies, out: Path, backend: str = "grid", verbose: bo
         per_map = []
         for name, policy in policies(map_name) if callable(policies) else policies:
             start = time.perf_counter()
-            result = evaluate(policy, map_name, backend=backend, policy_name=name)
+            result = evaluate(
+                policy, map_name, backend=backend, policy_name=name, **evaluate_kwargs
+            )
             seconds = time.perf_counter() - start
             result.to_json(out / f"{backend}_{result.map_name}_{name}.json")
             per_map.append(result)
@@ -100,12 +104,86 @@ def run_evaluation(maps, policies, out: Path, backend: str = "grid", verbose: bo
     return results
 
 
+def _wind(args) -> dict:
+    return {
+        "wind_speed": args.wind_speed,
+        "wind_direction": args.wind_direction,
+        "gust_std": args.gust_std,
+    }
+
+
 def cmd_evaluate(args) -> None:
     out = _out_dir(args.out)
     if not args.planner and not args.agent:
         args.planner = list(PLANNER_NAMES)
-    run_evaluation(args.map or bundled_maps(), _policies(args), out, backend=args.backend)
+    extra = {}
+    if args.backend == "mujoco":
+        extra = {"workers": args.workers, "progress": True, "env_kwargs": _wind(args)}
+    run_evaluation(args.map or bundled_maps(), _policies(args), out, args.backend, **extra)
     print(f"\nresults and figures: {out}/")
+
+
+# ----------------------------------------------------------------------------------------- fly
+def _parse_start(text: str | None) -> tuple[int, int] | None:
+    if text is None:
+        return None
+    try:
+        row, col = (int(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--start must be ROW,COL (e.g. 12,2), got {text!r}") from None
+    return row, col
+
+
+def cmd_fly(args) -> None:
+    from cpp_mujoco.maps import load_map
+
+    grid_map = load_map(args.map)
+    if args.planner:
+        from cpp_mujoco.planners import make_planner
+
+        policy = make_planner(args.planner)
+    else:
+        from cpp_mujoco.agent import load_agent
+
+        policy = load_agent(args.agent or grid_map.name)
+        if policy.map_shape != grid_map.shape:
+            raise ValueError(
+                f"agent {args.agent!r} was trained on {policy.map_shape[0]}x{policy.map_shape[1]} "
+                f"maps; map {grid_map.name!r} is {grid_map.shape[0]}x{grid_map.shape[1]}"
+            )
+    if (args.video or args.onboard_video or args.rrd) and args.backend == "mujoco":
+        from cpp_mujoco.review.rendering import configure_gl
+
+        print(f"offscreen rendering with {configure_gl(args.gl)}", file=sys.stderr)
+    from cpp_mujoco.mission import fly_mission
+
+    extra = _wind(args) if args.backend == "mujoco" else {}
+    outcome = fly_mission(
+        policy,
+        grid_map,
+        budget=args.budget,
+        start=_parse_start(args.start),
+        backend=args.backend,
+        seed=args.seed,
+        rrd=args.rrd,
+        video=args.video,
+        onboard_video=args.onboard_video,
+        **extra,
+    )
+    result = "landed" if outcome.landed else f"CRASHED ({outcome.crash_reason})"
+    print(
+        f"map {outcome.map}, start {outcome.start}, budget {outcome.budget}: {outcome.steps} "
+        f"actions, {result}, coverage {outcome.coverage_ratio:.1%}, return "
+        f"{outcome.total_reward:.1f}"
+    )
+    if args.backend == "mujoco":
+        print(
+            f"flight {outcome.flight_time_s:.1f} s, energy {outcome.energy_used_j / 1000:.2f} kJ, "
+            f"no-fly violations {outcome.nfz_violations}, wall time {outcome.wall_time_s:.1f} s"
+        )
+    for kind, path in outcome.files.items():
+        hint = f"   (open with: rerun {path})" if kind == "rrd" else ""
+        print(f"{kind}: {path}{hint}")
 
 
 # ---------------------------------------------------------------------------------------- demo
@@ -151,6 +229,17 @@ def cmd_benchmark(args) -> None:
 
 
 # ---------------------------------------------------------------------------------------- main
+def _add_wind(p) -> None:
+    p.add_argument("--wind-speed", type=float, default=0.0, help="mujoco: steady wind, m/s")
+    p.add_argument(
+        "--wind-direction",
+        type=float,
+        default=0.0,
+        help="mujoco: where the wind blows from, degrees clockwise from north",
+    )
+    p.add_argument("--gust-std", type=float, default=0.0, help="mujoco: gust strength, m/s")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="cpp-mujoco",
@@ -180,9 +269,30 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         help="trained agents: a bundled map name (A) or a checkpoint path",
     )
-    p.add_argument("--backend", default="grid", choices=["grid"], help="simulation backend")
+    p.add_argument("--backend", default="grid", choices=["grid", "mujoco"], help="simulation")
+    p.add_argument("--workers", type=int, default=None, help="mujoco: processes (default: cores)")
+    _add_wind(p)
     p.add_argument("--out", default="out/evaluate", help="folder for JSON and figures")
     p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("fly", help="fly one mission; write a Rerun recording and videos")
+    p.add_argument("--map", default="A", help="bundled map name or PNG path (default: A)")
+    p.add_argument("--agent", help="bundled agent name or checkpoint path (default: the map's)")
+    p.add_argument("--planner", choices=PLANNER_NAMES, help="fly a reference planner instead")
+    p.add_argument("--budget", type=int, default=40, help="movement budget (default: 40)")
+    p.add_argument("--start", help="start cell ROW,COL (default: the first landing cell)")
+    p.add_argument("--backend", default="mujoco", choices=["mujoco", "grid"])
+    p.add_argument("--seed", type=int, default=0, help="seed (wind gusts)")
+    _add_wind(p)
+    p.add_argument("--rrd", help="write a Rerun recording here (open with: rerun PATH)")
+    p.add_argument("--video", help="write the chase camera's MP4 here")
+    p.add_argument("--onboard-video", help="write the downward camera's MP4 here")
+    p.add_argument("--gl", choices=["egl", "osmesa"], help="offscreen GL (default: egl, osmesa)")
+    p.set_defaults(func=cmd_fly)
+
+    from cpp_mujoco.agent.cli import add_train_parser
+
+    add_train_parser(sub)
 
     p = sub.add_parser("demo", help="the README's main job: evaluate on the bundled maps, figures")
     p.add_argument("--map", nargs="+", help="maps (default: all bundled)")
@@ -197,10 +307,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from cpp_mujoco.agent.checkpoint import CheckpointError
+    from cpp_mujoco.review.rendering import RenderingError
+
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
-    except (MapError, ValueError, OSError) as e:
+        if hasattr(args, "func"):
+            args.func(args)
+        else:
+            return args.handler(args)
+    except (MapError, ValueError, OSError, CheckpointError, RenderingError) as e:
         print(f"cpp-mujoco {args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -154,7 +154,7 @@ class MissionRecorder:
 
     def log_camera(self, time_s: float, image: np.ndarray) -> None:
         self._at(time_s)
-        self.rec.log("camera/image", rr.Image(image))
+        self.rec.log("camera/image", rr.Image(image).compress(jpeg_quality=80))
 
     def log_step(
         self,

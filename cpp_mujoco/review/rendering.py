@@ -20,7 +20,7 @@ import numpy as np
 GL_BACKENDS = ("egl", "osmesa")
 _PROBE = (
     "import mujoco;"
-    "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\"1 1 .1\" type=\"plane\"/>"
+    'm = mujoco.MjModel.from_xml_string(\'<mujoco><worldbody><geom size="1 1 .1" type="plane"/>'
     "</worldbody></mujoco>');"
     "r = mujoco.Renderer(m, 8, 8); d = mujoco.MjData(m); r.update_scene(d); r.render()"
 )
@@ -59,7 +59,9 @@ def configure_gl(backend: str | None = None) -> str:
     Must run before MuJoCo is imported in this process, or agree with what it loaded.
     """
     if backend is not None and backend not in GL_BACKENDS:
-        raise RenderingError(f"unknown GL backend {backend!r}; choose from {', '.join(GL_BACKENDS)}")
+        raise RenderingError(
+            f"unknown GL backend {backend!r}; choose from {', '.join(GL_BACKENDS)}"
+        )
     loaded = "mujoco" in sys.modules
     if loaded:
         current = os.environ.get("MUJOCO_GL", "")
