@@ -53,7 +53,8 @@ def test_recording_verifies_and_holds_images_lines_scalars_transforms(tmp_path):
     assert "Transform3D" in entities["/world/uav"]
     assert "LineStrips3D" in entities["/world/trajectory"]
     assert "LineStrips3D" in entities["/world/footprint"]
-    assert "Image" in entities["/camera/image"] and "Image" in entities["/coverage"]
+    assert "EncodedImage" in entities["/camera/image"]  # JPEG-compressed onboard frames
+    assert "Image" in entities["/coverage"]
     assert "Boxes3D" in entities["/world/ground"] and "Boxes3D" in entities["/world/no_fly"]
     for metric in ("energy_j", "budget", "reward", "return", "coverage_ratio"):
         assert "Scalars" in entities[f"/metrics/{metric}"]
