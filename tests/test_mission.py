@@ -1,0 +1,82 @@
+"""Flying one mission end to end: the CLI's recording and videos, and interrupted runs."""
+
+import subprocess
+from pathlib import Path
+
+import imageio.v3 as iio
+import pytest
+
+from cpp_mujoco.cli import main
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.mission import fly_mission
+from cpp_mujoco.planners import SafeGreedyPlanner
+from tests.test_review import RERUN, rrd_entities
+
+SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
+
+
+@pytest.fixture()
+def small_map(tmp_path) -> Path:
+    path = tmp_path / "small.png"
+    SMALL.save(path)
+    return path
+
+
+def test_fly_writes_a_verified_recording_and_decodable_videos(tmp_path, small_map, capsys):
+    rrd, video, onboard = tmp_path / "m.rrd", tmp_path / "chase.mp4", tmp_path / "onboard.mp4"
+    code = main(["fly", "--map", str(small_map), "--planner", "safe-greedy", "--budget", "8",
+                 "--start", "0,1", "--rrd", str(rrd), "--video", str(video),
+                 "--onboard-video", str(onboard)])  # fmt: skip
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "landed" in out and f"rerun {rrd}" in out
+    verify = subprocess.run([RERUN, "rrd", "verify", str(rrd)], capture_output=True, text=True)
+    assert verify.returncode == 0, verify.stderr
+    entities = rrd_entities(rrd)
+    assert "Transform3D" in entities["/world/uav"]
+    assert "LineStrips3D" in entities["/world/trajectory"]
+    assert "EncodedImage" in entities["/camera/image"]
+    assert "Scalars" in entities["/metrics/energy_j"]
+    for path in (video, onboard):
+        frames = iio.imread(path)
+        assert frames.shape[0] > 20 and frames.std() > 5  # real frames, not blank
+
+
+def test_grid_backend_recording(tmp_path):
+    outcome = fly_mission(SafeGreedyPlanner(), SMALL, budget=8, start=(0, 1), backend="grid",
+                          rrd=tmp_path / "g.rrd")  # fmt: skip
+    assert outcome.landed and outcome.coverage_ratio == 1.0
+    assert "LineStrips3D" in rrd_entities(tmp_path / "g.rrd")["/world/footprint"]
+
+
+class _Interrupting:
+    def __init__(self, after: int):
+        self.calls, self.after, self.inner = 0, after, SafeGreedyPlanner()
+
+    def act(self, obs):
+        self.calls += 1
+        if self.calls > self.after:
+            raise KeyboardInterrupt
+        return self.inner.act(obs)
+
+
+def test_an_interrupted_mission_leaves_readable_files(tmp_path):
+    rrd, onboard = tmp_path / "m.rrd", tmp_path / "onboard.mp4"
+    with pytest.raises(KeyboardInterrupt):
+        fly_mission(_Interrupting(1), SMALL, budget=8, start=(0, 1), rrd=rrd, onboard_video=onboard)
+    verify = subprocess.run([RERUN, "rrd", "verify", str(rrd)], capture_output=True, text=True)
+    assert verify.returncode == 0, verify.stderr
+    assert "Transform3D" in rrd_entities(rrd)["/world/uav"]
+    assert iio.imread(onboard).shape[0] > 5
+
+
+def test_fly_bad_input_messages(tmp_path, small_map, capsys):
+    assert main(["fly", "--map", "A", "--agent", "nonexistent"]) == 2
+    assert "no bundled agent" in capsys.readouterr().err
+    assert main(["fly", "--map", str(small_map), "--planner", "safe-greedy", "--start", "x"]) == 2
+    assert "ROW,COL" in capsys.readouterr().err
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    code = main(["fly", "--map", str(small_map), "--planner", "safe-greedy", "--budget", "4",
+                 "--start", "0,1", "--rrd", str(blocker / "m.rrd")])  # fmt: skip
+    assert code == 2 and "cannot write recording" in capsys.readouterr().err
