@@ -188,18 +188,13 @@ def cmd_fly(args) -> None:
 
 # ---------------------------------------------------------------------------------------- demo
 def cmd_demo(args) -> None:
+    from cpp_mujoco.review.rendering import configure_gl
+
     out = _out_dir(args.out)
-    maps = args.map or bundled_maps()
-    print(f"Reference planners under the paper's protocol on maps {', '.join(maps)}\n")
-    run_evaluation(
-        maps,
-        [
-            (n, __import__("cpp_mujoco.planners", fromlist=["x"]).make_planner(n))
-            for n in PLANNER_NAMES
-        ],
-        out,
-    )
-    print(f"\nJSON results and figures (coverage vs budget, trajectories) are in {out}/")
+    print(f"offscreen rendering with {configure_gl()}")
+    from cpp_mujoco.demo import run_demo
+
+    run_demo(out, args.map, budget_step=args.budget_step, workers=args.workers)
 
 
 # ----------------------------------------------------------------------------------- benchmark
@@ -294,9 +289,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_train_parser(sub)
 
-    p = sub.add_parser("demo", help="the README's main job: evaluate on the bundled maps, figures")
+    p = sub.add_parser(
+        "demo", help="the README's main job: agents on the grid and in MuJoCo, recordings, videos"
+    )
     p.add_argument("--map", nargs="+", help="maps (default: all bundled)")
     p.add_argument("--out", default="out/demo", help="folder for results (default: %(default)s)")
+    p.add_argument(
+        "--budget-step",
+        type=int,
+        default=5,
+        help="MuJoCo protocol: every n-th budget of 25..75 (1 = the full protocol)",
+    )
+    p.add_argument("--workers", type=int, default=None, help="MuJoCo processes (default: cores)")
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("benchmark", help="measure env, planner, training and physics speed")

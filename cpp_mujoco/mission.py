@@ -163,7 +163,14 @@ def _attach_flight_review(env, recorder, video, onboard_video, image_every):
         cameras.append(onboard)
     chase = None
     if video:
-        chase = OffscreenCamera(model, track_body="quadrotor/core", width=640, height=480)
+        chase = OffscreenCamera(
+            model,
+            track_body="quadrotor/core",
+            width=480,
+            height=360,
+            distance=16.0,
+            elevation=-45.0,
+        )
         cameras.append(chase)
         writers.append(VideoWriter(video, fps=fps))
     onboard_writer = None
