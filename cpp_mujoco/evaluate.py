@@ -28,7 +28,7 @@ class Policy(Protocol):
 
 @dataclass
 class EvaluationResult:
-    """Per-episode outcomes of one protocol run; ratios and the per-budget table derive from them."""
+    """Per-episode outcomes of one protocol run; ratios and the per-budget table derive."""
 
     map_name: str
     policy_name: str

@@ -59,7 +59,8 @@ class GridMap:
         if both.any():
             r, c = _first_cell(both)
             raise MapError(
-                f"landing and no-fly overlap in {int(both.sum())} cell(s), first at (row {r}, col {c})"
+                f"landing and no-fly overlap in {int(both.sum())} cell(s), "
+                f"first at (row {r}, col {c})"
             )
         if not self.landing.any():
             raise MapError("map has no landing cell (blue channel)")

@@ -1,8 +1,8 @@
 """Grid → MuJoCo transfer results: the grid-vs-physics table per map and the wind sweep.
 
 Regenerates everything the README's transfer section shows:
-    python scripts/transfer.py                       # full protocol in MuJoCo, sweep every 5th budget
-    python scripts/transfer.py --budget-step 5       # quicker: every 5th budget everywhere
+    python scripts/transfer.py                  # full protocol in MuJoCo, sweep every 5th budget
+    python scripts/transfer.py --budget-step 5  # quicker: every 5th budget everywhere
 Writes out/transfer/{transfer.md, transfer.json, wind_sweep.png, coverage_*.png}.
 """
 
@@ -66,7 +66,8 @@ def main() -> None:
                           "coverage": f"{s['coverage_ratio']:.2%}",
                           "J/action": f"{s['energy_per_action_j']:.0f}",
                           "crashes": s["crashes"], "nfz viol.": s["nfz_violations"],
-                          "_landing": s["landing_ratio"], "_coverage": s["coverage_ratio"]})  # fmt: skip
+                          "_landing": s["landing_ratio"],
+                          "_coverage": s["coverage_ratio"]})  # fmt: skip
     shown = [{k: v for k, v in r.items() if not k.startswith("_")} for r in sweep]
     print(format_table(rows, list(rows[0])))
     print()
@@ -82,7 +83,7 @@ def main() -> None:
         axes[0].plot(winds, [r["_landing"] for r in entries], "o-", label=f"map {map_name}")
         axes[1].plot(winds, [r["_coverage"] for r in entries], "o-", label=f"map {map_name}")
     for ax, label in zip(axes, ("landing ratio", "coverage ratio"), strict=True):
-        ax.set_xlabel("steady wind, m/s (gusts σ = %.1f m/s)" % args.gust_std)
+        ax.set_xlabel(f"steady wind, m/s (gusts σ = {args.gust_std:.1f} m/s)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         ax.legend()

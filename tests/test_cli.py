@@ -1,4 +1,4 @@
-"""The ``cpp-mujoco`` command: outputs written, and bad input answered with a message, not a traceback."""
+"""The ``cpp-mujoco`` command: outputs written; bad input answered with a message, no traceback."""
 
 import json
 

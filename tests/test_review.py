@@ -1,4 +1,4 @@
-"""Review tools: a Rerun recording holds what it should, rendered frames are not blank, MP4s decode."""
+"""Review tools: recordings hold what they should, rendered frames are not blank, MP4s decode."""
 
 import os
 import re

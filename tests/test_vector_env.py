@@ -1,4 +1,4 @@
-"""The native batched env: gymnasium's vector API, and step-by-step agreement with the single env."""
+"""The native batched env: gymnasium's vector API; step-by-step agreement with the single env."""
 
 import gymnasium as gym
 import numpy as np

@@ -12,7 +12,7 @@ from cpp_mujoco.maps import GridMap
 
 
 def square_fov_masks(grid_map: GridMap, side: int) -> np.ndarray:
-    """(H·W, H·W) bool: row ``p`` is the side×side square centred on cell ``p``, clipped to the grid.
+    """(H·W, H·W) bool: row ``p`` is the side×side square centred on cell ``p``, clipped.
 
     An even side extends one cell further to the south/east than to the north/west.
     """

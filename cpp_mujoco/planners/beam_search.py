@@ -6,18 +6,18 @@ land. The best landed path found is the plan. Coverage is held as packed bits (p
 episodes of a protocol are searched together, so a full protocol takes seconds.
 
 The safe greedy planner's path is kept as the incumbent: where it sees more than the beam's best,
-it is the plan, so this planner is never worse than greedy. Because the grid is deterministic a plan made at the first step is simply followed; if the
-observed state ever departs from the plan's (e.g. under the physics backend) that episode is
-replanned from where it is.
+it is the plan, so this planner is never worse than greedy. Because the grid is deterministic a
+plan made at the first step is simply followed; if the observed state ever departs from the
+plan's (e.g. under the physics backend) that episode is replanned from where it is.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.grid.safety import LAND
 from cpp_mujoco.planners.graph import MapGraph, graph_from_observation
-from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
 from cpp_mujoco.planners.state import decode_observation, rollout
 

@@ -29,7 +29,8 @@ def rollout(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Play ``policy`` from the given states to the end in a scratch :class:`GridMDP`.
 
-    Returns (actions (k, T) padded with LAND, target cells seen at the end (k,), actions taken (k,)).
+    Returns (actions (k, T) padded with LAND, target cells seen at the end (k,), actions taken
+    (k,)).
     """
     mdp = GridMDP(grid_map, pos.size, config)
     mdp.restore(pos, budget, coverage)

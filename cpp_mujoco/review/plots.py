@@ -64,7 +64,9 @@ def draw_trajectory(ax, grid_map: GridMap, cells: np.ndarray, fov_side: int = 3)
     seen = fov[cells[1:]].any(axis=0) if cells.size > 1 else np.zeros(grid_map.landing.size, bool)
     draw_map(ax, grid_map, seen)
     rows, cols = np.divmod(cells, grid_map.shape[1])
-    for (r0, c0), (r1, c1) in zip(zip(rows[:-1], cols[:-1]), zip(rows[1:], cols[1:])):
+    for (r0, c0), (r1, c1) in zip(
+        zip(rows[:-1], cols[:-1], strict=True), zip(rows[1:], cols[1:], strict=True), strict=True
+    ):
         if (r0, c0) != (r1, c1):
             ax.annotate(
                 "", (c1, r1), (c0, r0), arrowprops={"arrowstyle": "->", "color": "red", "lw": 1.2}
@@ -89,7 +91,7 @@ def trajectories_figure(
     if start is None:
         start = tuple(int(v) for v in result.starts[0])
     fig, axes = plt.subplots(1, len(budgets), figsize=(4 * len(budgets), 4.2))
-    for ax, budget in zip(np.atleast_1d(axes), budgets):
+    for ax, budget in zip(np.atleast_1d(axes), budgets, strict=True):
         sel = np.flatnonzero((result.budgets == budget) & (result.starts == start).all(axis=1))
         if sel.size == 0:
             raise ValueError(f"no episode with start {start} and budget {budget}")

@@ -31,7 +31,7 @@ class RenderingError(RuntimeError):
 
 
 def default_gl_backend() -> str:
-    """EGL if its library is installed, else OSMesa, else rendering disabled (physics still runs)."""
+    """EGL if its library is installed, else OSMesa, else none (physics runs without GL)."""
     if ctypes.util.find_library("EGL"):
         return "egl"
     if ctypes.util.find_library("OSMesa"):
@@ -143,7 +143,7 @@ class OffscreenCamera:
 
 
 class VideoWriter:
-    """MP4 (H.264) through imageio-ffmpeg. Closing on error or interrupt still finalises the file."""
+    """MP4 (H.264) through imageio-ffmpeg; closing on error or interrupt finalises the file."""
 
     def __init__(self, path: str | os.PathLike, fps: float = 20.0):
         import imageio.v2 as imageio

@@ -17,7 +17,7 @@ def format_table(rows: Sequence[dict], columns: Sequence[str], floats: str = "{:
     widths = [
         max(len(c), *(len(r[i]) for r in body)) if body else len(c) for i, c in enumerate(columns)
     ]
-    lines = ["  ".join(c.ljust(w) for c, w in zip(columns, widths))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(columns, widths, strict=True))]
     lines.append("  ".join("-" * w for w in widths))
-    lines += ["  ".join(v.ljust(w) for v, w in zip(r, widths)) for r in body]
+    lines += ["  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)) for r in body]
     return "\n".join(lines)
