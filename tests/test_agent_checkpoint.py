@@ -18,6 +18,7 @@ TINY = dict(
     learning_starts=200,
     eval_every=10**9,
     checkpoint_every=10**9,
+    final_eval=False,
     threads=1,
 )
 

@@ -54,6 +54,9 @@ def add_train_parser(subparsers) -> argparse.ArgumentParser:
     for f in dataclasses.fields(TrainConfig):
         flag = "--" + f.name.replace("_", "-")
         kind = type(getattr(defaults, f.name))
+        if kind is bool:
+            p.add_argument(flag, dest=f.name, action=argparse.BooleanOptionalAction, default=None)
+            continue
         p.add_argument(
             flag,
             dest=f.name,

@@ -34,11 +34,22 @@ class TrainConfig:
     num_envs: int = 32  # speed: environments stepped together, one batched forward per step
     n_step: int = 3  # speed: n-step return targets (1 = paper)
     updates_per_step: float = 1.0  # speed: gradient updates per vector step (of num_envs env steps)
+    # speed: guided exploration. DDQN learns off-policy, so part of the collection may follow
+    # another behaviour policy: the first guide_fraction of the envs act by a reference planner
+    # (with probability guide_epsilon the agent's own soft-max action instead), decaying linearly
+    # to no guidance at guide_updates. 0 = the paper's pure soft-max exploration.
+    guide: str = "safe-greedy"
+    guide_fraction: float = 0.0
+    guide_epsilon: float = 0.2
+    guide_updates: int = 10_000
     learning_starts: int = 2_000  # env steps collected before the first update
     total_updates: int = 30_000  # training length in gradient updates
     max_minutes: float = 0.0  # stop after this wall-clock time (0 = no limit)
     # --- bookkeeping -------------------------------------------------------------------------
-    eval_every: int = 2_000  # greedy evaluation (full §7 protocol) every so many updates
+    eval_every: int = 1_000  # greedy evaluation every so many updates (all landing cells × …)
+    eval_budget_step: int = 5  # … budgets min, min+step, …, max (1 = the full §7 protocol; the
+    # final evaluation at the end of a run is always the full protocol, in final_eval.json)
+    final_eval: bool = True  # full-protocol evaluation of the final agent → final_eval.json
     checkpoint_every: int = 2_000  # resumable checkpoint every so many updates
     budget_scale: float = 0.0  # network input = budget / budget_scale; 0 means max_budget
     device: str = "cpu"
@@ -74,6 +85,7 @@ class TrainConfig:
             learning_rate=1e-4,
             total_updates=500_000,
             learning_starts=128,
+            guide_fraction=0.0,
         )
         return cls(**{**base, **overrides})
 
