@@ -59,21 +59,10 @@ class GridEnv(gym.Env):
         return self._observation(), float(out.reward[0]), terminated, False, self._info()
 
     def _observation(self) -> dict[str, np.ndarray]:
-        obs = {k: v[0] for k, v in self.mdp.observation().items()}
-        obs["map"] = obs["map"].copy()  # the batch shares one read-only map; hand out our own
-        return obs
+        return self.mdp.observation_of(0)
 
     def _info(self) -> dict[str, Any]:
-        """The batch's info for env 0, as Python scalars."""
-        m = self.mdp
-        return {
-            "position": divmod(int(m.position[0]), m.width),
-            "budget": int(m.budget[0]),
-            "landed": bool(m.landed[0]),
-            "crashed": bool(m.crashed[0]),
-            "rejected": bool(m.rejected[0]),
-            "coverage_ratio": int(m.seen_targets[0]) / m.num_targets,
-        }
+        return self.mdp.info_of(0)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":

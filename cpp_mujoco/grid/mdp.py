@@ -233,6 +233,23 @@ class GridMDP:
             "safety": self.rejected.view(np.int8)[:, None].copy(),
         }
 
+    def observation_of(self, i: int) -> dict[str, np.ndarray]:
+        """Environment ``i``'s observation, arrays of its own (no leading dimension)."""
+        obs = {k: v[i] for k, v in self.observation().items()}
+        obs["map"] = obs["map"].copy()  # the batch shares one read-only map; hand out our own
+        return obs
+
+    def info_of(self, i: int) -> dict:
+        """Environment ``i``'s info as Python scalars (the single envs' ``info``)."""
+        return {
+            "position": divmod(int(self.position[i]), self.width),
+            "budget": int(self.budget[i]),
+            "landed": bool(self.landed[i]),
+            "crashed": bool(self.crashed[i]),
+            "rejected": bool(self.rejected[i]),
+            "coverage_ratio": int(self.seen_targets[i]) / self.num_targets,
+        }
+
     def info(self) -> dict[str, np.ndarray]:
         rows, cols = np.divmod(self.position, self.width)
         return {

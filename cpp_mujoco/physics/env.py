@@ -140,19 +140,12 @@ class MuJoCoEnv(gym.Env):
 
     # ------------------------------------------------------------------ views
     def _observation(self) -> dict[str, np.ndarray]:
-        obs = {k: v[0] for k, v in self.mdp.observation().items()}
-        obs["map"] = obs["map"].copy()
-        return obs
+        return self.mdp.observation_of(0)
 
     def _info(self) -> dict[str, Any]:
-        m, f = self.mdp, self.flight
+        f = self.flight
         return {
-            "position": divmod(int(m.position[0]), m.width),
-            "budget": int(m.budget[0]),
-            "landed": bool(m.landed[0]),
-            "crashed": bool(m.crashed[0]),
-            "rejected": bool(m.rejected[0]),
-            "coverage_ratio": int(m.seen_targets[0]) / m.num_targets,
+            **self.mdp.info_of(0),
             "energy_used_j": float(f.energy_used),
             "flight_time_s": float(f.time),
             "nfz_violations": int(f.nfz_violations),
