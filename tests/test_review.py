@@ -17,7 +17,10 @@ RERUN = str(Path(sys.executable).parent / "rerun")
 
 
 def rrd_entities(path) -> dict[str, set[str]]:
-    """Entity path → archetypes logged there, read back with ``rerun rrd print``."""
+    """Entity path → archetypes logged there, read back with ``rerun rrd print``, after
+    ``rerun rrd verify`` has accepted the file."""
+    verify = subprocess.run([RERUN, "rrd", "verify", str(path)], capture_output=True, text=True)
+    assert verify.returncode == 0, verify.stderr
     out = subprocess.run(
         [RERUN, "rrd", "print", "-v", str(path)], capture_output=True, text=True, check=True
     ).stdout
@@ -47,8 +50,6 @@ def test_recording_verifies_and_holds_images_lines_scalars_transforms(tmp_path):
         }
         rec.log_step(t + 3.0, 1, -0.2, info, np.zeros(256, bool), 14 * 16 + 3)
     rec.close()
-    verify = subprocess.run([RERUN, "rrd", "verify", str(path)], capture_output=True, text=True)
-    assert verify.returncode == 0, verify.stderr
     entities = rrd_entities(path)
     assert "Transform3D" in entities["/world/uav"]
     assert "LineStrips3D" in entities["/world/trajectory"]
