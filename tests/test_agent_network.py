@@ -61,4 +61,4 @@ def test_observation_to_tensors_channel_order():
     assert (
         torch.equal(grid[0, 0], torch.eye(4)) and grid[0, 1].sum() == 16 and grid[0, 4, 2, 3] == 1
     )
-    assert budget.item() == pytest.approx(30 / 75)
+    assert budget.item() == pytest.approx(30 / 75)  # the scale is a parameter

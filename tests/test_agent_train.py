@@ -23,7 +23,7 @@ def test_smoke_training_beats_random(tmp_path):
     cfg = TrainConfig(
         map="A", min_budget=8, max_budget=16, num_envs=16, total_updates=150,
         learning_starts=500, batch_size=64, learning_rate=1e-3, lr_warmup_updates=20,
-        eval_every=10**9, checkpoint_every=10**9, final_eval=False, threads=1,
+        eval_every=10**9, checkpoint_every=10**9, final_eval=False, threads=1, guide_fraction=0.0,
     )  # fmt: skip
     trainer = Trainer(cfg, tmp_path)
     trainer.run(progress=False)
@@ -71,3 +71,21 @@ def test_cli_builds_config():
         paper.tau,
         paper.beta,
     ) == (1, 1, "mse", 128, 0.95, 0.005, 0.1)
+
+
+def test_guided_exploration_follows_planner_and_decays(tmp_path):
+    from cpp_mujoco.planners import make_planner
+
+    cfg = TrainConfig(
+        map="B", num_envs=8, guide_fraction=0.5, guide_epsilon=0.0, guide_updates=100, threads=1
+    )
+    trainer = Trainer(cfg, tmp_path)
+    assert trainer.guided_envs() == 4
+    obs = {k: v.copy() for k, v in trainer.obs.items()}
+    trainer.collect()
+    expected = make_planner("safe-greedy").act({k: v[:4] for k, v in obs.items()})
+    assert np.array_equal(trainer.replay.action[0, :4], expected)
+    trainer.updates = 50
+    assert trainer.guided_envs() == 2
+    trainer.updates = 100
+    assert trainer.guided_envs() == 0
