@@ -1,5 +1,7 @@
 """Flying one mission end to end: the CLI's recording and videos, and interrupted runs."""
 
+import subprocess
+import sys
 from pathlib import Path
 
 import imageio.v3 as iio
@@ -75,3 +77,26 @@ def test_fly_bad_input_messages(tmp_path, small_map, capsys):
     code = main(["fly", "--map", str(small_map), "--planner", "safe-greedy", "--budget", "4",
                  "--start", "0,1", "--rrd", str(blocker / "m.rrd")])  # fmt: skip
     assert code == 2 and "cannot write recording" in capsys.readouterr().err
+
+
+def test_fly_with_an_agent_for_another_map_size(tmp_path, small_map, capsys):
+    # the bundled agents are 16x16; the small map is 3x5
+    code = main(["fly", "--map", str(small_map), "--agent", "A", "--budget", "5", "--start", "0,1"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "trained on 16x16" in err and "Traceback" not in err
+
+
+def test_no_gl_backend_is_a_clear_message(tmp_path, small_map):
+    # a fresh process, so MuJoCo is not imported yet; no backend passes the probe
+    script = (
+        "import sys; import cpp_mujoco.review.rendering as r;"
+        "r.gl_works = lambda backend, timeout=60.0: False;"
+        "from cpp_mujoco.cli import main;"
+        f"sys.exit(main(['fly', '--map', {str(small_map)!r}, '--planner', 'safe-greedy',"
+        f" '--start', '0,1', '--video', {str(tmp_path / 'v.mp4')!r}]))"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert result.returncode == 2
+    assert "no offscreen GL backend works" in result.stderr
+    assert "Traceback" not in result.stderr
