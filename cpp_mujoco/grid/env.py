@@ -42,11 +42,7 @@ class GridEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        options = dict(options or {})
-        start, budget = options.pop("start", None), options.pop("budget", None)
-        if options:
-            raise ValueError(f"unknown reset option(s) {sorted(options)}; known: start, budget")
-        self.mdp.reset(self.np_random, start=start, budget=budget)
+        self.mdp.reset_with_options(self.np_random, options)  # validates and draws
         self._needs_reset = False
         return self._observation(), self._info()
 

@@ -153,6 +153,14 @@ class GridMDP:
         self.rejected[idx] = False
         self.initial_budget[idx] = budgets
 
+    def reset_with_options(self, rng: np.random.Generator, options: dict | None) -> None:
+        """The single envs' ``reset(options=...)``: ``start`` and ``budget``, nothing else."""
+        options = dict(options or {})
+        start, budget = options.pop("start", None), options.pop("budget", None)
+        if options:
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; known: start, budget")
+        self.reset(rng, start=start, budget=budget)
+
     def restore(self, position: np.ndarray, budget: np.ndarray, coverage: np.ndarray) -> None:
         """Put every environment into a given mid-episode state (flat cells, budgets, (N, H·W)
         coverage) — for planners that simulate ahead from an observation."""

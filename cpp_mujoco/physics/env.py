@@ -88,11 +88,7 @@ class MuJoCoEnv(gym.Env):
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        options = dict(options or {})
-        start, budget = options.pop("start", None), options.pop("budget", None)
-        if options:
-            raise ValueError(f"unknown reset option(s) {sorted(options)}; known: start, budget")
-        self.mdp.reset(self.np_random, start=start, budget=budget)  # validates and draws
+        self.mdp.reset_with_options(self.np_random, options)  # validates and draws
         row, col = divmod(int(self.mdp.position[0]), self.mdp.width)
         capacity = float(self.mdp.budget[0]) * self.unit_energy
         self.flight.reset(row, col, capacity, rng=self.np_random)
