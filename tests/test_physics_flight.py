@@ -105,8 +105,10 @@ def test_one_budget_unit_per_nominal_move_and_more_in_a_headwind():
         return info
 
     calm = fly((NORTH, NORTH, SOUTH, SOUTH))
-    assert calm["energy_used_j"] / unit == pytest.approx(4.0, abs=0.05)
-    assert calm["budget"] in (10 - 4, 10 - 5)
+    moves = calm["energy_used_j"] / cal["unit_energy_j"]  # in calibrated moves
+    assert moves == pytest.approx(4.0, abs=0.05)
+    assert unit == pytest.approx(cal["unit_energy_j"] * (1 + CONFIG.unit_margin))
+    assert calm["budget"] == 10 - 4  # the shown budget keeps pace with the grid's count
     # an 8 m/s wind from the north: the same path costs more, the headwind leg most
     windy = fly((NORTH, NORTH, SOUTH, SOUTH), wind_speed=8.0, wind_direction=0.0)
     assert windy["energy_used_j"] > 1.01 * calm["energy_used_j"]
@@ -174,3 +176,14 @@ def test_physical_failure_is_a_crash_not_an_exception():
     _, reward, terminated, _, info = env.step(EAST)
     assert terminated and info["crashed"] and info["crash_reason"] == "flipped over"
     assert math.isfinite(reward)
+
+
+def test_shown_budget_keeps_pace_with_the_grid_over_a_long_mission():
+    """30 moves then a landing on the last unit: lands in physics as it would on the grid."""
+    env = MuJoCoEnv(map=OPEN)
+    env.reset(seed=0, options={"start": (2, 2), "budget": 31})
+    for k in range(30):
+        *_, info = env.step(NORTH if k % 2 == 0 else SOUTH)
+        assert info["budget"] == 31 - (k + 1), f"after {k + 1} moves"
+    *_, terminated, _, info = env.step(4)
+    assert terminated and info["landed"] and not info["crashed"]

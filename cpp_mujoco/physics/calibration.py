@@ -72,8 +72,8 @@ def calibration(config: PhysicsConfig) -> dict:
 
 
 def unit_energy(config: PhysicsConfig) -> float:
-    """J in one budget unit for this configuration."""
-    return float(calibration(config)["unit_energy_j"])
+    """J in one budget unit: the calibrated calm-air move times (1 + ``unit_margin``)."""
+    return float(calibration(config)["unit_energy_j"]) * (1.0 + config.unit_margin)
 
 
 def _source_digest() -> str:

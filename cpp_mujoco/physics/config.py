@@ -15,7 +15,7 @@ import math
 from dataclasses import asdict, dataclass, fields
 
 # fields that do not change how a calm-air move flies (so they do not change the energy unit)
-_NOT_CALIBRATED = {"wind_speed", "wind_direction", "gust_std", "gust_tau"}
+_NOT_CALIBRATED = {"wind_speed", "wind_direction", "gust_std", "gust_tau", "unit_margin"}
 
 
 @dataclass(frozen=True)
@@ -40,9 +40,18 @@ class PhysicsConfig:
     land_speed: float = 0.8  # m/s, final sink rate until the landing gear touches
     land_time_limit: float = 12.0  # s, no touchdown by then is a failure
     fall_time_limit: float = 5.0  # s, how long a motor-cut fall is simulated before the crash
+    # --- mapping: frames whose camera axis is further than this from nadir are not used for
+    # coverage (a survey pipeline drops oblique images; with the 90° camera a 12° tilt would
+    # stretch the far footprint edge from 1.5 to 2.3 cells and see a row the grid never does)
+    max_frame_tilt_deg: float = 5.0
     # --- failure detection
     max_tilt_deg: float = 80.0  # body tilt beyond this is a flip
     max_tracking_error: float = 8.0  # m, beyond this the flight has diverged
+    # --- the budget unit: a calibrated calm-air move, plus this margin. Real moves scatter by a
+    # few tenths of a percent around the calibration; without a margin ⌊remaining / unit⌋ can
+    # fall one unit behind the grid's count after the first move, and an agent that lands on its
+    # last grid unit would see 0 and end as a crash with most of a unit left.
+    unit_margin: float = 0.02
     # --- weather (default calm)
     air_density: float = 1.225  # kg/m³, ISA sea level
     wind_speed: float = 0.0  # m/s, steady wind
@@ -54,6 +63,8 @@ class PhysicsConfig:
         for name in ("cell_size", "altitude", "timestep", "control_rate", "camera_rate"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if not 0.0 <= self.unit_margin < 0.5:
+            raise ValueError(f"unit_margin must be in [0, 0.5), got {self.unit_margin}")
         if self.wind_speed < 0 or self.gust_std < 0:
             raise ValueError("wind_speed and gust_std must be >= 0")
         if self.move_time_limit < self.move_duration:

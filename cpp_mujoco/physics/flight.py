@@ -100,6 +100,7 @@ class Flight:
         self.no_fly = grid_map.nfz.reshape(-1).tolist()
         self.coverage = coverage if coverage is not None else np.zeros((1, self.target.size), bool)
         self.cos_flip = math.cos(math.radians(config.max_tilt_deg))
+        self.cos_frame_tilt = math.cos(math.radians(config.max_frame_tilt_deg))
         hx, hy = self.geo.half_extent
         self.bounds = (hx + config.cell_size, hy + config.cell_size, 3 * config.altitude + 5)
         self._warn_badqacc = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
@@ -297,13 +298,16 @@ class Flight:
 
     # ------------------------------------------------------------------ camera
     def frame(self) -> int:
-        """Take a camera frame: mark the target cells whose centres lie in the footprint."""
+        """Take a camera frame: mark the target cells whose centres lie in the footprint, unless
+        the camera is too oblique for mapping (``max_frame_tilt_deg``)."""
         self.next_frame = float(self.data.time) + 1.0 / self.config.camera_rate
         self.frames += 1
-        poly = footprint(self._cam_pos.tolist(), self._cam_mat.tolist(), self.rays)
+        cam_mat = self._cam_mat.tolist()
+        poly = footprint(self._cam_pos.tolist(), cam_mat, self.rays)
         self.last_footprint = poly
         newly = 0
-        cells = cells_in_footprint(poly, self.geo) if poly is not None else []
+        nadir = cam_mat[8] >= self.cos_frame_tilt  # camera −z vs world −z
+        cells = cells_in_footprint(poly, self.geo) if poly is not None and nadir else []
         if cells:
             seen = self._seen
             seen[:] = False
