@@ -40,10 +40,13 @@ class PhysicsConfig:
     land_speed: float = 0.8  # m/s, final sink rate until the landing gear touches
     land_time_limit: float = 12.0  # s, no touchdown by then is a failure
     fall_time_limit: float = 5.0  # s, how long a motor-cut fall is simulated before the crash
-    # --- mapping: frames whose camera axis is further than this from nadir are not used for
-    # coverage (a survey pipeline drops oblique images; with the 90° camera a 12° tilt would
-    # stretch the far footprint edge from 1.5 to 2.3 cells and see a row the grid never does)
-    max_frame_tilt_deg: float = 5.0
+    # --- mapping: a cell is seen when its centre lies in the camera footprint *and* within the
+    # nominal (level, cruise-altitude) footprint around the camera's nadir point: beyond it the
+    # ground resolution is coarser than the mission algorithm is designed for. Without this, a
+    # 12° acceleration tilt of the 90° camera stretches the far edge from 1.5 to 2.3 cells and
+    # sees a row the grid never does; steady wind tilts are tolerated. Frames more than
+    # ``max_frame_tilt_deg`` off nadir are not used at all.
+    max_frame_tilt_deg: float = 30.0
     # --- failure detection
     max_tilt_deg: float = 80.0  # body tilt beyond this is a flip
     max_tracking_error: float = 8.0  # m, beyond this the flight has diverged

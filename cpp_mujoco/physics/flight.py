@@ -101,6 +101,9 @@ class Flight:
         self.coverage = coverage if coverage is not None else np.zeros((1, self.target.size), bool)
         self.cos_flip = math.cos(math.radians(config.max_tilt_deg))
         self.cos_frame_tilt = math.cos(math.radians(config.max_frame_tilt_deg))
+        fovy = math.radians(float(model.cam_fovy[self.cam_id]))
+        self.nominal_half = config.altitude * math.tan(fovy / 2) + 1e-6  # level footprint, m
+        self._centers = [tuple(c) for c in self.geo.centers().tolist()]
         hx, hy = self.geo.half_extent
         self.bounds = (hx + config.cell_size, hy + config.cell_size, 3 * config.altitude + 5)
         self._warn_badqacc = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
@@ -298,16 +301,27 @@ class Flight:
 
     # ------------------------------------------------------------------ camera
     def frame(self) -> int:
-        """Take a camera frame: mark the target cells whose centres lie in the footprint, unless
-        the camera is too oblique for mapping (``max_frame_tilt_deg``)."""
+        """Take a camera frame: mark the target cells whose centres lie in the footprint and in
+        the nominal footprint around the nadir point (see ``PhysicsConfig``)."""
         self.next_frame = float(self.data.time) + 1.0 / self.config.camera_rate
         self.frames += 1
         cam_mat = self._cam_mat.tolist()
         poly = footprint(self._cam_pos.tolist(), cam_mat, self.rays)
         self.last_footprint = poly
         newly = 0
-        nadir = cam_mat[8] >= self.cos_frame_tilt  # camera −z vs world −z
-        cells = cells_in_footprint(poly, self.geo) if poly is not None and nadir else []
+        cells = []
+        if poly is not None and cam_mat[8] >= self.cos_frame_tilt:  # camera −z vs world −z
+            x, y, half, centers = (
+                self._cam_pos[0],
+                self._cam_pos[1],
+                self.nominal_half,
+                self._centers,
+            )
+            cells = [
+                c
+                for c in cells_in_footprint(poly, self.geo)
+                if abs(centers[c][0] - x) <= half and abs(centers[c][1] - y) <= half
+            ]
         if cells:
             seen = self._seen
             seen[:] = False
