@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -202,9 +201,3 @@ def _attach_flight_review(env, recorder, video, onboard_video, image_every):
 
     flight.on_frame = on_frame
     return cameras, writers
-
-
-def default_output(folder: str | os.PathLike, stem: str) -> dict[str, Path]:
-    folder = Path(folder)
-    return {"rrd": folder / f"{stem}.rrd", "video": folder / f"{stem}_chase.mp4",
-            "onboard_video": folder / f"{stem}_onboard.mp4"}  # fmt: skip
