@@ -105,7 +105,14 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
 
 
 def coverage_upper_bound(grid_map: GridMap, budget: int, fov_side: int = 3) -> float:
-    """An upper bound on the coverage ratio any policy reaches with ``budget`` actions.
+    """An upper bound on the coverage ratio any policy reaches with ``budget`` actions."""
+    return coverage_upper_bounds(grid_map, [budget], fov_side)[budget]
+
+
+def coverage_upper_bounds(
+    grid_map: GridMap, budgets: Iterable[int], fov_side: int = 3
+) -> dict[int, float]:
+    """Budget → an upper bound on the coverage ratio any policy reaches with that many actions.
 
     min(targets visible from cells it can visit and still land, cells a path can see) / targets.
     A visited cell c needs ``2·d(c) + 1 <= budget`` (out from a landing cell, back, land), with
@@ -114,11 +121,14 @@ def coverage_upper_bound(grid_map: GridMap, budget: int, fov_side: int = 3) -> f
     """
     from cpp_mujoco.planners.graph import build_graph
 
-    g = build_graph(grid_map, fov_side)
-    visitable = 2 * (g.home - 1) + 1 <= budget
-    visible = int(g.fov_targets[visitable].any(axis=0).sum())
-    seeable = fov_side**2 + fov_side * max(budget - 2, 0)
-    return float(min(visible, seeable) / grid_map.target.sum())
+    g = build_graph(grid_map, fov_side)  # one all-pairs distance table for every budget
+    bounds = {}
+    for budget in {int(b) for b in budgets}:
+        visitable = 2 * (g.home - 1) + 1 <= budget
+        visible = int(g.fov_targets[visitable].any(axis=0).sum())
+        seeable = fov_side**2 + fov_side * max(budget - 2, 0)
+        bounds[budget] = float(min(visible, seeable) / grid_map.target.sum())
+    return bounds
 
 
 def protocol_episodes(grid_map: GridMap, budgets: Iterable[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -153,10 +163,7 @@ def evaluate(
         budgets = range(config.min_budget, config.max_budget + 1)
     starts, budget_per_episode = protocol_episodes(grid_map, budgets)
     name = policy_name or getattr(policy, "name", type(policy).__name__)
-    bounds = {
-        int(b): coverage_upper_bound(grid_map, int(b), config.fov_side)
-        for b in set(budget_per_episode.tolist())
-    }
+    bounds = coverage_upper_bounds(grid_map, budget_per_episode, config.fov_side)
     if backend == "mujoco":
         return _evaluate_physics(
             policy, grid_map, starts, budget_per_episode, name, bounds, workers, progress,
