@@ -204,7 +204,10 @@ def _evaluate_physics(
     trajectories = np.full((len(records), length), -1, dtype=np.int64)
     for i, r in enumerate(records):
         trajectories[i, : len(r.cells)] = r.cells
-    column = lambda key, dtype=float: np.array([getattr(r, key) for r in records], dtype=dtype)  # noqa: E731
+
+    def column(key: str, dtype=float) -> np.ndarray:
+        return np.array([getattr(r, key) for r in records], dtype=dtype)
+
     return EvaluationResult(
         map_name=grid_map.name,
         policy_name=name,
