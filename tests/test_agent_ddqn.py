@@ -5,7 +5,13 @@ import pytest
 import torch
 from torch import nn
 
-from cpp_mujoco.agent.ddqn import ddqn_target, ddqn_update, soft_update, softmax_actions
+from cpp_mujoco.agent.ddqn import (
+    ddqn_target,
+    ddqn_update,
+    margin_loss,
+    soft_update,
+    softmax_actions,
+)
 from cpp_mujoco.agent.replay import ReplayBuffer
 
 
@@ -97,3 +103,36 @@ def test_replay_n_step_returns_stop_at_termination():
     assert set(seen) == {0, 1}  # rows 2..4 lack 3 following rows
     assert seen[0][:2] == (1.0 + 0.5 * 2.0, 0.0)  # terminates at step 1
     assert seen[1][:2] == (2.0, 0.0)
+
+
+def test_margin_loss_hand_computed():
+    q = torch.tensor([[1.0, 3.0, 2.0], [5.0, 1.0, 0.0], [0.0, 9.0, 0.0]])
+    action = torch.tensor([2, 0, 0])
+    demo = torch.tensor([True, True, False])  # the third row is the agent's own: no margin loss
+    # row 0: max(1+.5, 3+.5, 2) − 2 = 1.5;  row 1: demonstrated action already best by > .5 → 0
+    assert margin_loss(q, action, demo, 0.5).item() == pytest.approx((1.5 + 0.0) / 2)
+    assert margin_loss(q, action, torch.zeros(3, dtype=torch.bool), 0.5).item() == 0.0
+
+
+def test_margin_loss_makes_the_demonstrated_action_greedy():
+    online, target = Table([[0.0, 1.0, 0.0]]), Table([[0.0, 1.0, 0.0]])
+    opt = torch.optim.SGD(online.parameters(), lr=0.1)
+    batch = {
+        "grid": torch.zeros(1, 1),
+        "budget": torch.tensor([[0.0]]),
+        "action": torch.tensor([2]),
+        "return": torch.tensor([0.0]),
+        "next_grid": torch.zeros(1, 1),
+        "next_budget": torch.tensor([[0.0]]),
+        "discount": torch.tensor([0.0]),
+        "demo": torch.tensor([True]),
+    }
+    for _ in range(100):
+        ddqn_update(online, target, opt, batch, tau=0.0, loss_kind="huber", margin=0.5)
+    assert int(online.q[0].argmax()) == 2  # the demonstrator's action, against the initial Q
+    batch["demo"] = torch.tensor([False])
+    without = Table([[0.0, 1.0, 0.0]])
+    opt = torch.optim.SGD(without.parameters(), lr=0.1)
+    for _ in range(100):
+        ddqn_update(without, target, opt, batch, tau=0.0, loss_kind="huber", margin=0.5)
+    assert int(without.q[0].argmax()) == 1  # TD alone drives Q(s, 2) to 0 only

@@ -24,6 +24,7 @@ def test_smoke_training_beats_random(tmp_path):
         map="A", min_budget=8, max_budget=16, num_envs=16, total_updates=150,
         learning_starts=500, batch_size=64, learning_rate=1e-3, lr_warmup_updates=20,
         eval_every=10**9, checkpoint_every=10**9, final_eval=False, threads=1, guide_fraction=0.0,
+        demo_fraction=0.0,  # pure temporal-difference learning from the agent's own experience
     )  # fmt: skip
     trainer = Trainer(cfg, tmp_path)
     trainer.run(progress=False)

@@ -27,6 +27,9 @@ class TrainConfig:
     # --- optimiser (paper: Adam; learning rate not stated) ----------------------------------
     learning_rate: float = 5e-4  # speed: see docs/agent.md
     lr_warmup_updates: int = 200  # speed: linear warm-up from 0 to learning_rate
+    # speed: cosine decay of the learning rate to lr_final·learning_rate at total_updates
+    # (1.0 = constant) — a quieter end for the greedy policy that is kept
+    lr_final: float = 1.0
     adam_eps: float = 1e-5
     loss: str = "huber"  # "mse" (paper) or "huber" (speed: robust to the −150 crash reward)
     max_grad_norm: float = 10.0  # speed: gradient clipping; 0 disables
@@ -42,6 +45,14 @@ class TrainConfig:
     guide_fraction: float = 0.5
     guide_epsilon: float = 0.2
     guide_updates: int = 6_000
+    # speed: demonstrations (DQfD, Hester et al. 2018). The reference planner flies every
+    # (landing cell, budget) pair once; demo_fraction of every minibatch is drawn from those
+    # transitions, which get the TD loss and, weighted by demo_weight, the large-margin loss
+    # max_a[Q(s,a) + demo_margin·(a ≠ a_E)] − Q(s,a_E). 0 = no demonstrations (the paper).
+    demo_planner: str = "beam-search"
+    demo_fraction: float = 0.25
+    demo_margin: float = 0.5  # in reward units: one new target cell is worth 0.4
+    demo_weight: float = 1.0
     learning_starts: int = 2_000  # env steps collected before the first update
     total_updates: int = 30_000  # training length in gradient updates
     max_minutes: float = 0.0  # stop after this wall-clock time (0 = no limit)
@@ -67,6 +78,8 @@ class TrainConfig:
             raise ValueError("num_envs and batch_size must be >= 1")
         if self.buffer_size < self.num_envs * (self.n_step + 2):
             raise ValueError(f"buffer_size {self.buffer_size} too small for {self.num_envs} envs")
+        if not 0.0 <= self.demo_fraction < 1.0:
+            raise ValueError(f"demo_fraction must be in [0, 1), got {self.demo_fraction}")
         if not 0.0 < self.tau <= 1.0 or not 0.0 <= self.gamma <= 1.0 or self.beta <= 0:
             raise ValueError("need 0 < tau <= 1, 0 <= gamma <= 1, beta > 0")
 
@@ -85,10 +98,12 @@ class TrainConfig:
             loss="mse",
             max_grad_norm=0.0,
             lr_warmup_updates=0,
+            lr_final=1.0,
             learning_rate=1e-4,
             total_updates=500_000,
             learning_starts=128,
             guide_fraction=0.0,
+            demo_fraction=0.0,
             tau=0.005,
         )
         return cls(**{**base, **overrides})

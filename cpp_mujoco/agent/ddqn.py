@@ -6,6 +6,10 @@
 
 With ``n_step = 1`` R is the reward and γⁿ = γ — exactly the paper's target.
 Exploration samples π(a|s) ∝ exp(Q_θ(s, a)/β); evaluation is greedy.
+
+Optionally (DQfD, Hester et al. 2018) minibatches also hold a reference planner's transitions, on
+which a large-margin loss makes the demonstrated action the greedy one unless another action is
+worth ``margin`` more:  L_E = max_a [Q(s, a) + margin·(a ≠ a_E)] − Q(s, a_E).
 """
 
 from __future__ import annotations
@@ -59,6 +63,16 @@ def td_loss(q_taken: torch.Tensor, y: torch.Tensor, kind: str = "mse") -> torch.
     raise ValueError(f"unknown loss {kind!r}")
 
 
+def margin_loss(
+    q: torch.Tensor, action: torch.Tensor, demo: torch.Tensor, margin: float
+) -> torch.Tensor:
+    """DQfD's large-margin loss, averaged over the rows where ``demo`` is true (a_E = action)."""
+    bonus = torch.full_like(q, margin).scatter(1, action[:, None], 0.0)
+    gap = (q + bonus).max(dim=1).values - q.gather(1, action[:, None]).squeeze(1)
+    weight = demo.to(q.dtype)
+    return (gap * weight).sum() / weight.sum().clamp(min=1.0)
+
+
 def ddqn_update(
     online: nn.Module,
     target: nn.Module,
@@ -68,14 +82,20 @@ def ddqn_update(
     tau: float,
     loss_kind: str = "mse",
     max_grad_norm: float = 0.0,
+    margin: float = 0.0,
+    margin_weight: float = 1.0,
 ) -> dict[str, float]:
-    """One gradient step on a minibatch, then the soft target update. Returns loss and mean Q."""
+    """One gradient step on a minibatch, then the soft target update. Returns loss and mean Q.
+
+    With ``batch["demo"]`` (a bool mask of demonstrated rows) the large-margin loss is added."""
     y = ddqn_target(
         online, target, batch["next_grid"], batch["next_budget"], batch["return"], batch["discount"]
     )
     q = online(batch["grid"], batch["budget"])
     q_taken = q.gather(1, batch["action"][:, None]).squeeze(1)
     loss = td_loss(q_taken, y, loss_kind)
+    if "demo" in batch and margin_weight > 0:
+        loss = loss + margin_weight * margin_loss(q, batch["action"], batch["demo"], margin)
     optimizer.zero_grad(set_to_none=True)
     loss.backward()
     if max_grad_norm > 0:

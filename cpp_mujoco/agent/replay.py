@@ -59,14 +59,19 @@ class ReplayBuffer:
         return self._valid_rows() > 0
 
     def sample(self, batch_size: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        """Indices → n-step transitions: s, a, R = Σ γ^k r_{t+k}, bootstrap state s_{t+n'},
-        discount γ^{n'} (0 if the window ended in a termination)."""
+        """``batch_size`` uniformly drawn n-step transitions (see ``transitions``)."""
         valid = self._valid_rows()
         if valid <= 0:
             raise RuntimeError("not enough transitions in the replay buffer to sample")
         oldest = self.pos if self.full else 0
         t = (oldest + rng.integers(valid, size=batch_size)) % self.rows
         e = rng.integers(self.num_envs, size=batch_size)
+        return self.transitions(t, e)
+
+    def transitions(self, t: np.ndarray, e: np.ndarray) -> dict[str, np.ndarray]:
+        """Rows ``t`` of envs ``e`` → n-step transitions: s, a, R = Σ γ^k r_{t+k}, bootstrap
+        state s_{t+n'}, discount γ^{n'} (0 if the window ended in a termination)."""
+        batch_size = t.size
         ret = np.zeros(batch_size, dtype=np.float32)
         alive = np.ones(batch_size, dtype=bool)  # window not yet ended by a termination
         steps = np.zeros(batch_size, dtype=np.int64)

@@ -31,6 +31,7 @@ from cpp_mujoco.agent.checkpoint import (
 )
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.ddqn import ddqn_update, softmax_actions
+from cpp_mujoco.agent.demonstrations import record_demonstrations
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.replay import ReplayBuffer
@@ -120,11 +121,14 @@ class Trainer:
             c.buffer_size, c.num_envs, self.grid_map.layers, c.n_step, c.gamma
         )
         self.rng = np.random.default_rng(c.seed)
-        self.guide = None
-        if c.guide_fraction > 0:
-            from cpp_mujoco.planners import make_planner
+        from cpp_mujoco.planners import make_planner
 
-            self.guide = make_planner(c.guide)
+        self.guide = make_planner(c.guide) if c.guide_fraction > 0 else None
+        self.demos = None
+        if c.demo_fraction > 0:
+            self.demos = record_demonstrations(
+                self.grid_map, self.grid_config, make_planner(c.demo_planner), c.n_step, c.gamma
+            )
         self.torch_gen = torch.Generator().manual_seed(c.seed)
         self.obs, _ = self.env.reset(seed=c.seed)
         self.updates = self.env_steps = self.episodes = 0
@@ -173,9 +177,17 @@ class Trainer:
         return int(round(c.guide_fraction * left * c.num_envs))
 
     def batch(self) -> dict[str, torch.Tensor]:
-        s = self.replay.sample(self.config.batch_size, self.rng)
+        """A minibatch of the agent's own transitions, with ``demo_fraction`` of it drawn from the
+        demonstrations (marked by ``demo``)."""
+        c = self.config
+        n_demo = int(round(c.demo_fraction * c.batch_size)) if self.demos else 0
+        s = self.replay.sample(c.batch_size - n_demo, self.rng)
+        demo = np.zeros(c.batch_size, dtype=bool)
+        if n_demo:
+            s = _concat(s, self.demos.sample(n_demo, self.rng))
+            demo[-n_demo:] = True
         d = self.device
-        scale = self.config.input_budget_scale
+        scale = c.input_budget_scale
         (g, b), (ng, nb) = s["obs"], s["next_obs"]
         return {
             "grid": torch.from_numpy(g).to(d),
@@ -185,14 +197,21 @@ class Trainer:
             "next_grid": torch.from_numpy(ng).to(d),
             "next_budget": torch.from_numpy(nb / scale).to(d),
             "discount": torch.from_numpy(s["discount"]).to(d),
+            "demo": torch.from_numpy(demo).to(d),
         }
+
+    def learning_rate(self) -> float:
+        """Linear warm-up over ``lr_warmup_updates``, then cosine decay to ``lr_final``·lr."""
+        c = self.config
+        warmup = min(1.0, (self.updates + 1) / c.lr_warmup_updates) if c.lr_warmup_updates else 1.0
+        progress = min(1.0, self.updates / max(c.total_updates, 1))
+        decay = c.lr_final + (1.0 - c.lr_final) * 0.5 * (1.0 + np.cos(np.pi * progress))
+        return c.learning_rate * warmup * float(decay)
 
     def update(self) -> None:
         c = self.config
-        if c.lr_warmup_updates > 0:
-            lr = c.learning_rate * min(1.0, (self.updates + 1) / c.lr_warmup_updates)
-            for group in self.optimizer.param_groups:
-                group["lr"] = lr
+        for group in self.optimizer.param_groups:
+            group["lr"] = self.learning_rate()
         if self.tuner:
             self.tuner.before(self.updates)
             t0 = time.perf_counter()
@@ -204,6 +223,8 @@ class Trainer:
             tau=c.tau,
             loss_kind=c.loss,
             max_grad_norm=c.max_grad_norm,
+            margin=c.demo_margin,
+            margin_weight=c.demo_weight,
         )
         if self.tuner:
             self.tuner.after(self.updates, time.perf_counter() - t0)
@@ -433,6 +454,17 @@ class Trainer:
                 f"coverage {res.coverage_ratio:.4f}"
             )
         return self.history[-1] if self.history else {}
+
+
+def _concat(a: dict, b: dict) -> dict:
+    """Concatenate two sampled batches field by field (``obs``/``next_obs`` are pairs)."""
+    out = {}
+    for k, v in a.items():
+        if isinstance(v, tuple):
+            out[k] = tuple(np.concatenate([x, y]) for x, y in zip(v, b[k], strict=True))
+        else:
+            out[k] = np.concatenate([v, b[k]])
+    return out
 
 
 def train(

@@ -1,0 +1,64 @@
+"""Demonstrations from a reference planner, for DQfD's large-margin loss (Hester et al. 2018).
+
+The planner (default: the beam search) flies every episode of the training distribution — every
+landing cell × every budget min..max, the same set the §7 protocol evaluates — once, in one batched
+``GridMDP``. Its transitions are kept in a ``ReplayBuffer`` with one column per episode, so the
+n-step returns of demonstration samples are read exactly as for the agent's own experience. The
+grid is deterministic and so is the planner: the memory is rebuilt, not checkpointed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpp_mujoco.agent.replay import ReplayBuffer
+from cpp_mujoco.evaluate import protocol_episodes
+from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.maps import GridMap
+
+
+@dataclass
+class Demonstrations:
+    memory: ReplayBuffer  # one column per demonstrated episode
+    rows: np.ndarray  # (T,) row of each recorded transition …
+    episodes: np.ndarray  # (T,) … and its column
+    landing_ratio: float
+    coverage_ratio: float
+
+    def __len__(self) -> int:
+        return self.rows.size
+
+    def sample(self, batch_size: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """Uniformly drawn demonstrated n-step transitions (``ReplayBuffer.transitions``)."""
+        i = rng.integers(self.rows.size, size=batch_size)
+        return self.memory.transitions(self.rows[i], self.episodes[i])
+
+
+def record_demonstrations(
+    grid_map: GridMap, config: GridConfig, planner, n_step: int, gamma: float
+) -> Demonstrations:
+    """Fly ``planner`` over every (landing cell, budget) pair and keep every transition."""
+    starts, budgets = protocol_episodes(grid_map, range(config.min_budget, config.max_budget + 1))
+    k = len(starts)
+    mdp = GridMDP(grid_map, k, config)
+    mdp.reset(np.random.default_rng(0), start=starts, budget=budgets)
+    max_rows = config.max_budget + n_step + 2  # an episode takes at most max_budget steps
+    memory = ReplayBuffer(max_rows * k, k, grid_map.layers, n_step, gamma)
+    recorded = []  # (k,) masks: which episodes were still flying at each row
+    while not mdp.done.all():
+        active = ~mdp.done
+        obs = mdp.observation()
+        actions = np.asarray(planner.act(obs), dtype=np.int64).reshape(-1)
+        out = mdp.step(actions, active=active)
+        memory.add(obs, actions, out.reward, out.terminated | ~active)
+        recorded.append(active)
+    rows, episodes = np.nonzero(np.stack(recorded))
+    return Demonstrations(
+        memory,
+        rows,
+        episodes,
+        landing_ratio=float(mdp.landed.mean()),
+        coverage_ratio=float((mdp.seen_targets / mdp.num_targets).mean()),
+    )
