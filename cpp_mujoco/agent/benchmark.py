@@ -17,7 +17,8 @@ def benchmark_training(
 
     Returns ``updates_per_s`` and ``env_steps_per_s`` of the full loop (collection + learning),
     ``collect_env_steps_per_s`` of collection alone (batched forward + soft-max + env step) and
-    ``update_ms`` for one gradient update at the configured batch size.
+    ``update_ms`` for one gradient update at the configured batch size, and ``setup_s`` for building
+    the trainer (the planner's demonstrations are recorded there).
     """
     from cpp_mujoco.agent.train import Trainer
 
@@ -30,7 +31,9 @@ def benchmark_training(
         **overrides,
     )
     with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
         trainer = Trainer(config, tmp)
+        setup_s = time.perf_counter() - t0
         # collection alone (this also fills the replay memory past learning_starts)
         t0 = time.perf_counter()
         while len(trainer.replay) < max(config.learning_starts, config.batch_size * 4):
@@ -63,6 +66,8 @@ def benchmark_training(
         "env_steps_per_s": (trainer.env_steps - s0) / dt,
         "collect_env_steps_per_s": collect_rate,
         "update_ms": update_ms,
+        "setup_s": setup_s,
+        "demonstrations": len(trainer.demos) if trainer.demos else 0,
     }
 
 
