@@ -1,16 +1,31 @@
-"""Full-protocol table: bundled DDQN agents vs the reference planners on maps A, B, C.
+"""The paper-style results: bundled DDQN agents vs the reference planners on maps A, B, C.
 
-python scripts/results.py [--maps A B C] [--json results.json]
+    python scripts/results.py [--maps A B C] [--out out/results]
+
+Full protocol on the grid (every landing cell × every budget 25..75, greedy). Writes, per map, the
+coverage-per-budget figure against the planners and the upper bound (the paper's Fig. 3), example
+trajectories at three budgets for each policy (Fig. 2), every result as JSON, and ``results.txt``:
+landing ratio vs the paper's, coverage vs the safe greedy and beam-search planners.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+from pathlib import Path
 
 from cpp_mujoco.agent import load_agent
-from cpp_mujoco.evaluate import PAPER_LANDING_RATIO, evaluate
+from cpp_mujoco.cli import run_evaluation
+from cpp_mujoco.evaluate import PAPER_LANDING_RATIO, atomic_write_text
 from cpp_mujoco.planners import make_planner
+from cpp_mujoco.review.tables import format_table
+
+
+def policies(map_name: str):
+    return [
+        ("ddqn", load_agent(map_name)),
+        ("safe-greedy", make_planner("safe-greedy")),
+        ("beam-search", make_planner("beam-search")),
+    ]
 
 
 def main(argv=None) -> int:
@@ -18,28 +33,33 @@ def main(argv=None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     p.add_argument("--maps", nargs="+", default=["A", "B", "C"])
-    p.add_argument("--json", default=None, help="also write the rows here")
+    p.add_argument("--out", default="out/results", help="folder for figures, JSON, results.txt")
     args = p.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    results = run_evaluation(args.maps, policies, out)
     rows = []
-    print(f"{'map':4} {'policy':12} {'landing':>8} {'coverage':>9} {'paper landing':>14}")
-    for m in args.maps:
-        policies = {"ddqn": load_agent(m), "safe-greedy": make_planner("safe-greedy")}
-        for name, policy in policies.items():
-            r = evaluate(policy, m)
-            rows.append(
-                {
-                    "map": m,
-                    "policy": name,
-                    "landing_ratio": r.landing_ratio,
-                    "coverage_ratio": r.coverage_ratio,
-                }
-            )
-            paper = PAPER_LANDING_RATIO.get(m) if name == "ddqn" else None
-            paper_txt = f"{paper:.4f}" if paper else ""
-            print(f"{m:4} {name:12} {r.landing_ratio:8.4f} {r.coverage_ratio:9.4f} {paper_txt:>14}")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(rows, f, indent=2)
+    for per_map in results.values():
+        by = {r.policy_name: r for r in per_map}
+        agent, greedy, beam = by["ddqn"], by["safe-greedy"], by["beam-search"]
+        paper = PAPER_LANDING_RATIO[agent.map_name]
+        crashes = int((~agent.landed).sum())
+        rows.append(
+            {
+                "map": agent.map_name,
+                "landing": f"{agent.landing_ratio:.2%} ({crashes} of {agent.landed.size} crash)",
+                "paper landing": f"{paper:.2%}",
+                "coverage": f"{agent.coverage_ratio:.2%}",
+                "safe greedy": f"{greedy.coverage_ratio:.2%}",
+                "beam search": f"{beam.coverage_ratio:.2%}",
+                "bar met": "yes"
+                if agent.landing_ratio >= paper and agent.coverage_ratio >= greedy.coverage_ratio
+                else "no",
+            }
+        )
+    table = format_table(rows, list(rows[0]))
+    atomic_write_text(out / "results.txt", table + "\n")
+    print(f"\n{table}\n\nfigures, JSON and results.txt: {out}/")
     return 0
 
 

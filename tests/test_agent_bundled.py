@@ -5,9 +5,10 @@ import pytest
 
 from cpp_mujoco.agent import bundled_agents, load_agent
 from cpp_mujoco.agent.network import count_parameters
-from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.evaluate import PAPER_LANDING_RATIO, evaluate
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.maps import load_map
+from cpp_mujoco.planners import make_planner
 
 NAMES = bundled_agents()
 
@@ -30,8 +31,29 @@ def test_bundled_agent_loads_and_acts(name):
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_bundled_agent_regression(name):
-    # every landing cell × budgets 25, 35, …, 75 (the full protocol is in docs/agent.md)
-    result = evaluate(load_agent(name), name, budgets=range(25, 76, 10))
-    assert result.landing_ratio >= 0.9
-    assert result.coverage_ratio >= 0.7
+def test_bundled_agent_meets_the_bar(name):
+    """Issue 3's bar on the full protocol: lands at least as often as the paper's agent (and in
+    ≥ 99.9 % of episodes) and covers at least as much as the safe greedy planner. The tolerance
+    allows a few near-tied Q-values to break differently on another CPU's float kernels."""
+    agent = evaluate(load_agent(name), name)
+    greedy = evaluate(make_planner("safe-greedy"), name)
+    assert agent.landing_ratio >= max(PAPER_LANDING_RATIO[name], 0.999)
+    assert agent.coverage_ratio >= greedy.coverage_ratio - 1e-3
+
+
+def test_results_script_writes_table_and_figures(tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "results.py"
+    spec = importlib.util.spec_from_file_location("results_script", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    assert script.main(["--maps", "C", "--out", str(tmp_path)]) == 0
+    table = (tmp_path / "results.txt").read_text()
+    assert "98.26%" in table and "bar met" in table  # the paper's landing ratio for C
+    names = {p.name for p in tmp_path.iterdir()}
+    assert "grid_C_coverage.png" in names
+    for policy in ("ddqn", "safe-greedy", "beam-search"):
+        assert f"grid_C_{policy}_trajectories.png" in names
+        assert f"grid_C_{policy}.json" in names
