@@ -65,13 +65,25 @@ def test_agent_round_trip_and_load_agent(run_dir):
 
 
 def test_resume_continues_exactly(tmp_path):
-    straight = Trainer(TrainConfig(total_updates=8, **TINY), tmp_path / "a")
+    config = TrainConfig(total_updates=8, **{**TINY, "checkpoint_every": 4})
+    straight = Trainer(config, tmp_path / "a")
     straight.run(progress=False)
-    first = Trainer(TrainConfig(total_updates=4, **TINY), tmp_path / "b")
-    first.run(progress=False)
-    resumed = Trainer(TrainConfig(total_updates=8, **TINY), tmp_path / "b")
+    # the same run, interrupted after its checkpoint at update 4 (the learning-rate schedule
+    # depends on total_updates, so the interrupted run must be the same configuration)
+    first = Trainer(config, tmp_path / "b")
+    update = first.update
+
+    def interrupted_update():
+        if first.updates == 4:
+            raise KeyboardInterrupt
+        update()
+
+    first.update = interrupted_update
+    with pytest.raises(KeyboardInterrupt):
+        first.run(progress=False)
+    resumed = Trainer(config, tmp_path / "b")
     assert resumed.resume()
-    assert resumed.updates == 4 and resumed.env_steps == first.env_steps
+    assert resumed.updates == 4
     resumed.run(progress=False)
     assert resumed.updates == straight.updates and resumed.env_steps == straight.env_steps
     assert torch.allclose(_weights(resumed.online), _weights(straight.online), atol=1e-6)
