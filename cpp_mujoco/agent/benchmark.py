@@ -71,7 +71,53 @@ def benchmark_training(
     }
 
 
+def update_ms(compile_network: bool, updates: int = 40, batch_size: int = 128) -> dict:
+    """One DDQN update of the paper's network (16×16, half the batch demonstrations), eager or
+    with ``torch.compile`` — the measurement behind training eagerly."""
+    from cpp_mujoco.agent.ddqn import ddqn_update
+    from cpp_mujoco.agent.network import QNetwork
+
+    torch.manual_seed(0)
+    online, target = QNetwork(16, 16), QNetwork(16, 16)
+    run_online = torch.compile(online) if compile_network else online
+    run_target = torch.compile(target) if compile_network else target
+    optimizer = torch.optim.Adam(online.parameters(), lr=1e-4)
+    b = batch_size
+    batch = {
+        "grid": torch.rand(b, 5, 16, 16),
+        "budget": torch.rand(b, 1) * 75,
+        "action": torch.randint(5, (b,)),
+        "return": torch.rand(b),
+        "next_grid": torch.rand(b, 5, 16, 16),
+        "next_budget": torch.rand(b, 1) * 75,
+        "discount": torch.full((b,), 0.95),
+        "demo": torch.arange(b) < b // 2,
+    }
+
+    def step():
+        ddqn_update(
+            run_online, run_target, optimizer, batch, tau=0.01, loss_kind="huber", margin=0.5
+        )
+
+    t0 = time.perf_counter()
+    for _ in range(5):  # warm-up (compilation happens here)
+        step()
+    warmup_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for _ in range(updates):
+        step()
+    return {
+        "compile": compile_network,
+        "update_ms": (time.perf_counter() - t0) / updates * 1000,
+        "warmup_s": warmup_s,
+    }
+
+
 if __name__ == "__main__":
     import json
+    import sys
 
-    print(json.dumps(benchmark_training(), indent=2))
+    if "--compile" in sys.argv:  # python -m cpp_mujoco.agent.benchmark --compile
+        print(json.dumps([update_ms(False), update_ms(True)], indent=2))
+    else:
+        print(json.dumps(benchmark_training(), indent=2))
