@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
-from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.grid.mdp import GridConfig, GridMDP, StepOutcome
 from cpp_mujoco.maps import GridMap, load_map
 
 PAPER_LANDING_RATIO = {"A": 0.9937, "B": 0.9978, "C": 0.9826}
@@ -149,14 +149,19 @@ def evaluate(
     workers: int | None = None,
     progress: bool = False,
     env_kwargs: dict | None = None,
+    on_step: Callable[[dict, np.ndarray, StepOutcome, np.ndarray], None] | None = None,
 ) -> EvaluationResult:
     """Run the full protocol for ``policy`` on ``map``; budgets default to the config's range.
 
     ``backend="mujoco"`` flies every episode in physics, over ``workers`` processes (default:
     all cores), with ``env_kwargs`` for the physics env (``wind_speed=6`` …).
+    ``on_step(observation, actions, outcome, active)`` (grid only) sees every batched step — the
+    agent's demonstrations are recorded through it.
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; available: {', '.join(BACKENDS)}")
+    if on_step is not None and backend != "grid":
+        raise ValueError("on_step is only available with backend='grid'")
     grid_map = load_map(map)
     config = config or GridConfig()
     if budgets is None:
@@ -175,8 +180,11 @@ def evaluate(
     trail = [mdp.position.copy()]
     while not mdp.done.all():
         active = ~mdp.done
-        actions = np.asarray(policy.act(mdp.observation()), dtype=np.int64).reshape(-1)
+        obs = mdp.observation()
+        actions = np.asarray(policy.act(obs), dtype=np.int64).reshape(-1)
         out = mdp.step(actions, active=active)
+        if on_step is not None:
+            on_step(obs, actions, out, active)
         returns += out.reward
         trail.append(np.where(active, mdp.position, -1))
     return EvaluationResult(

@@ -26,6 +26,19 @@ class Table(nn.Module):
         return self.q[budget.reshape(-1).long()]
 
 
+def _terminal_batch(action: int, ret: float, next_state: float) -> dict[str, torch.Tensor]:
+    """A one-transition minibatch from state 0 that terminates (Y = ret)."""
+    return {
+        "grid": torch.zeros(1, 1),
+        "budget": torch.tensor([[0.0]]),
+        "action": torch.tensor([action]),
+        "return": torch.tensor([ret]),
+        "next_grid": torch.zeros(1, 1),
+        "next_budget": torch.tensor([[next_state]]),
+        "discount": torch.tensor([0.0]),
+    }
+
+
 def test_ddqn_target_hand_computed():
     online = Table([[1.0, 5.0, 2.0], [9.0, 0.0, 3.0]])  # argmax: action 1, action 0
     target = Table([[10.0, 20.0, 30.0], [40.0, 50.0, 60.0]])
@@ -42,15 +55,7 @@ def test_update_moves_q_towards_target_and_gradient_stops_at_y():
     online = Table([[0.0, 0.0], [0.0, 0.0]])
     target = Table([[0.0, 0.0], [0.0, 0.0]])
     opt = torch.optim.SGD(online.parameters(), lr=0.5)
-    batch = {
-        "grid": torch.zeros(1, 1),
-        "budget": torch.tensor([[0.0]]),
-        "action": torch.tensor([1]),
-        "return": torch.tensor([2.0]),
-        "next_grid": torch.zeros(1, 1),
-        "next_budget": torch.tensor([[1.0]]),
-        "discount": torch.tensor([0.0]),
-    }
+    batch = _terminal_batch(action=1, ret=2.0, next_state=1.0)
     stats = ddqn_update(online, target, opt, batch, tau=1.0, loss_kind="mse")
     assert stats["loss"] == pytest.approx(4.0)
     # d/dq (q - 2)^2 = -4 → q = 0 + 0.5 * 4 = 2; only the taken action moves
@@ -117,16 +122,7 @@ def test_margin_loss_hand_computed():
 def test_margin_loss_makes_the_demonstrated_action_greedy():
     online, target = Table([[0.0, 1.0, 0.0]]), Table([[0.0, 1.0, 0.0]])
     opt = torch.optim.SGD(online.parameters(), lr=0.1)
-    batch = {
-        "grid": torch.zeros(1, 1),
-        "budget": torch.tensor([[0.0]]),
-        "action": torch.tensor([2]),
-        "return": torch.tensor([0.0]),
-        "next_grid": torch.zeros(1, 1),
-        "next_budget": torch.tensor([[0.0]]),
-        "discount": torch.tensor([0.0]),
-        "demo": torch.tensor([True]),
-    }
+    batch = {**_terminal_batch(action=2, ret=0.0, next_state=0.0), "demo": torch.tensor([True])}
     for _ in range(100):
         ddqn_update(online, target, opt, batch, tau=0.0, loss_kind="huber", margin=0.5)
     assert int(online.q[0].argmax()) == 2  # the demonstrator's action, against the initial Q

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpp_mujoco.agent.replay import ReplayBuffer
-from cpp_mujoco.evaluate import protocol_episodes
-from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.evaluate import evaluate, protocol_episodes
+from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import GridMap
 
 
@@ -40,25 +40,16 @@ def record_demonstrations(
     grid_map: GridMap, config: GridConfig, planner, n_step: int, gamma: float
 ) -> Demonstrations:
     """Fly ``planner`` over every (landing cell, budget) pair and keep every transition."""
-    starts, budgets = protocol_episodes(grid_map, range(config.min_budget, config.max_budget + 1))
-    k = len(starts)
-    mdp = GridMDP(grid_map, k, config)
-    mdp.reset(np.random.default_rng(0), start=starts, budget=budgets)
+    budgets = range(config.min_budget, config.max_budget + 1)
+    k = len(protocol_episodes(grid_map, budgets)[0])
     max_rows = config.max_budget + n_step + 2  # an episode takes at most max_budget steps
     memory = ReplayBuffer(max_rows * k, k, grid_map.layers, n_step, gamma)
     recorded = []  # (k,) masks: which episodes were still flying at each row
-    while not mdp.done.all():
-        active = ~mdp.done
-        obs = mdp.observation()
-        actions = np.asarray(planner.act(obs), dtype=np.int64).reshape(-1)
-        out = mdp.step(actions, active=active)
-        memory.add(obs, actions, out.reward, out.terminated | ~active)
+
+    def record(obs, actions, outcome, active) -> None:
+        memory.add(obs, actions, outcome.reward, outcome.terminated | ~active)
         recorded.append(active)
+
+    result = evaluate(planner, grid_map, budgets=budgets, config=config, on_step=record)
     rows, episodes = np.nonzero(np.stack(recorded))
-    return Demonstrations(
-        memory,
-        rows,
-        episodes,
-        landing_ratio=float(mdp.landed.mean()),
-        coverage_ratio=float((mdp.seen_targets / mdp.num_targets).mean()),
-    )
+    return Demonstrations(memory, rows, episodes, result.landing_ratio, result.coverage_ratio)
