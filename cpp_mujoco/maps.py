@@ -6,14 +6,16 @@ PNG format, one pixel per cell, a channel > 0 means set: R = no-fly, G = target,
 
 from __future__ import annotations
 
+import hashlib
 import os
-import tempfile
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
+from cpp_mujoco.io import atomic_path, resolve_named_file
 from cpp_mujoco.resources import bundled_dir
 
 MAX_SIDE = 256  # larger grids are almost certainly a wrong file, and would not fit the network
@@ -31,12 +33,20 @@ def _first_cell(mask: np.ndarray) -> tuple[int, int]:
 
 @dataclass(frozen=True, eq=False)
 class GridMap:
-    """An H×W map. Arrays are read-only booleans of shape (H, W)."""
+    """An H×W map. Arrays are read-only booleans of shape (H, W).
+
+    ``name`` is the bundled name or the file's stem; ``source`` the file it was read from ("" if
+    built in memory); ``bundled`` whether it is one of the package's maps (only those carry the
+    paper's figures). ``label`` names it in results and file names without ambiguity, and
+    ``digest`` fingerprints its cells.
+    """
 
     landing: np.ndarray
     target: np.ndarray
     nfz: np.ndarray
     name: str = "custom"
+    source: str = ""
+    bundled: bool = False
 
     def __post_init__(self) -> None:
         layers = {}
@@ -67,6 +77,31 @@ class GridMap:
         if not self.target.any():
             raise MapError("map has no target cell (green channel)")
 
+    @cached_property
+    def digest(self) -> str:
+        """The first 12 hex digits of the SHA-256 of the shape and the three layers."""
+        h = hashlib.sha256(repr(self.shape).encode())
+        h.update(np.packbits(self.layers).tobytes())
+        return h.hexdigest()[:12]
+
+    @property
+    def label(self) -> str:
+        """The name for results and file names: a bundled map's name; another map's name, with
+        its digest when the name is also a bundled map's (a user's ``A.png`` is not map A)."""
+        if self.bundled or self.name not in bundled_maps():
+            return self.name
+        return f"{self.name}-{self.digest[:8]}"
+
+    def identity(self) -> dict[str, object]:
+        """What a result records about its map."""
+        return {
+            "map": self.label,
+            "map_source": self.source or ("bundled" if self.bundled else "in memory"),
+            "map_bundled": self.bundled,
+            "map_digest": self.digest,
+            "map_shape": list(self.shape),
+        }
+
     @property
     def shape(self) -> tuple[int, int]:
         return self.landing.shape  # type: ignore[return-value]
@@ -85,15 +120,8 @@ class GridMap:
 
     def save(self, path: str | os.PathLike) -> None:
         """Write as PNG atomically (a crash never leaves a half-written map)."""
-        path = Path(path)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".png.tmp")
-        os.close(fd)
-        try:
+        with atomic_path(path) as tmp:
             Image.fromarray(self.to_rgb(), mode="RGB").save(tmp, format="PNG")
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
 
     @classmethod
     def from_ascii(cls, rows: list[str] | str, name: str = "custom") -> GridMap:
@@ -143,19 +171,19 @@ def load_map(source: str | os.PathLike | GridMap) -> GridMap:
     """A bundled map by name (``"A"``), a PNG path, or a ``GridMap`` passed through."""
     if isinstance(source, GridMap):
         return source
-    text = os.fspath(source)
-    path = Path(text)
-    if path.suffix.lower() != ".png" and os.sep not in text and "/" not in text:
-        candidate = bundled_dir("maps") / f"{text}.png"
-        if not candidate.is_file():
-            raise MapError(f"unknown map {text!r}; bundled maps: {', '.join(bundled_maps())}")
-        path, name = candidate, text
-    else:
-        name = path.stem
+    where = resolve_named_file(
+        source, bundled=bundled_dir("maps"), suffix=".png", kind="map", error=MapError
+    )
+    path = where.path
     rgb = _read_png(path)
     try:
         return GridMap(
-            landing=rgb[..., 2] > 0, target=rgb[..., 1] > 0, nfz=rgb[..., 0] > 0, name=name
+            landing=rgb[..., 2] > 0,
+            target=rgb[..., 1] > 0,
+            nfz=rgb[..., 0] > 0,
+            name=where.name,
+            source="" if where.bundled else str(path),
+            bundled=where.bundled,
         )
     except MapError as e:
         raise MapError(f"{path}: {e}") from e
