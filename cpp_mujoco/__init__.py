@@ -1,13 +1,11 @@
-"""cpp_mujoco: UAV coverage path planning under power constraints, on a grid and in MuJoCo."""
+"""cpp_mujoco: UAV coverage path planning under power constraints, on a grid and in MuJoCo.
 
-import os
+Importing it only registers the gymnasium envs: no environment variables, no MuJoCo, no GL.
+The offscreen GL backend is chosen when something first renders
+(:func:`cpp_mujoco.review.rendering.select_gl`).
+"""
 
 from gymnasium.envs.registration import register, registry
-
-from cpp_mujoco.review.rendering import default_gl_backend
-
-# MuJoCo picks its GL backend once, at import: give it a headless one unless the user chose.
-os.environ.setdefault("MUJOCO_GL", default_gl_backend())
 
 __version__ = "0.1.0"
 

@@ -1,92 +1,84 @@
 """The README's main job: the bundled agents (or, without them, the planners) on every bundled
 map — the paper's protocol on the grid, the same protocol flown in MuJoCo, and one mission per map
-recorded for review (Rerun recording, chase and onboard videos)."""
+recorded for review (Rerun recording, chase and onboard videos).
+
+A map given by path is the map evaluated and named (its label) in every table and file name; it
+gets no bundled agent (those were trained on the bundled maps) and no paper figures."""
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from cpp_mujoco.evaluate import PAPER_LANDING_RATIO, atomic_write_text, evaluate
-from cpp_mujoco.maps import bundled_maps, load_map
-from cpp_mujoco.review.tables import format_table
+from cpp_mujoco.evaluate import evaluate, protocol_budgets
+from cpp_mujoco.maps import GridMap, bundled_maps, load_map
+from cpp_mujoco.review.results import (
+    DEMO_GRID_COLUMNS,
+    TRANSFER_COLUMNS,
+    Table,
+    demo_policies,
+    file_part,
+    protocol_row,
+    transfer_row,
+    write_tables,
+)
+
+__all__ = ["demo_policies", "run_demo"]
 
 
-def demo_policies(map_name: str) -> list[tuple[str, object]]:
-    """The bundled agent for the map (if there is one) and the safe greedy planner."""
-    from cpp_mujoco.agent import bundled_agents, load_agent
-    from cpp_mujoco.planners import SafeGreedyPlanner
-
-    policies: list[tuple[str, object]] = []
-    if map_name in bundled_agents():
-        policies.append((f"ddqn[{map_name}]", load_agent(map_name)))
-    policies.append(("safe-greedy", SafeGreedyPlanner()))
-    return policies
-
-
-def transfer_row(grid, physics) -> dict:
-    return {
-        "map": grid.map_name,
-        "policy": grid.policy_name,
-        "episodes": int(physics.landed.size),
-        "grid landing": f"{grid.landing_ratio:.2%}",
-        "mujoco landing": f"{physics.landing_ratio:.2%}",
-        "grid coverage": f"{grid.coverage_ratio:.2%}",
-        "mujoco coverage": f"{physics.coverage_ratio:.2%}",
-        "J/action": f"{physics.summary()['energy_per_action_j']:.0f}",
-        "nfz viol.": physics.summary()["nfz_violations"],
-    }
-
-
-def run_demo(out: Path, maps: list[str] | None = None, budget_step: int = 5, workers=None):
+def run_demo(
+    out: Path,
+    maps: list[str | GridMap] | None = None,
+    budget_step: int = 5,
+    workers: int | None = None,
+    progress: bool = False,
+) -> None:
+    """``maps``: names, PNG paths or GridMaps (default: the bundled maps)."""
     from cpp_mujoco.mission import fly_mission
     from cpp_mujoco.review.plots import coverage_figure, trajectories_figure
 
-    maps = maps or bundled_maps()
-    budgets = list(range(25, 76, budget_step))
-    rows, grid_rows, missions = [], [], []
+    grid_maps = [load_map(m) for m in maps or bundled_maps()]
+    budgets = protocol_budgets(step=budget_step)
+    grid_table = Table("the paper's protocol on the grid", DEMO_GRID_COLUMNS)
+    transfer = Table("grid vs MuJoCo, the same episodes", TRANSFER_COLUMNS)
+    missions = []
     started = time.perf_counter()
-    for map_name in maps:
-        grid_map = load_map(map_name)
-        for name, policy in demo_policies(map_name):
-            safe = name.replace("[", "_").replace("]", "")
-            grid = evaluate(policy, grid_map, policy_name=name)
-            grid.to_json(out / f"grid_{map_name}_{safe}.json")
-            grid_rows.append({
-                "map": map_name, "policy": name, "landing": f"{grid.landing_ratio:.2%}",
-                "coverage": f"{grid.coverage_ratio:.2%}",
-                "paper landing": f"{PAPER_LANDING_RATIO.get(map_name, float('nan')):.2%}",
-            })  # fmt: skip
+    for grid_map in grid_maps:
+        label = file_part(grid_map.label)
+        policies = demo_policies(grid_map)
+        for name, policy in policies:
+            safe = file_part(name)
+            grid = evaluate(policy, grid_map, policy_name=name, progress=progress)
+            grid.to_json(out / f"grid_{label}_{safe}.json")
+            grid_table.rows.append(protocol_row(grid))
             physics = evaluate(
                 policy, grid_map, backend="mujoco", budgets=budgets, policy_name=name,
-                workers=workers, progress=True,
+                workers=workers, progress=progress,
             )  # fmt: skip
-            physics.to_json(out / f"mujoco_{map_name}_{safe}.json")
+            physics.to_json(out / f"mujoco_{label}_{safe}.json")
             grid_same = evaluate(policy, grid_map, budgets=budgets, policy_name=name)
-            rows.append(transfer_row(grid_same, physics))
-            coverage_figure([grid_same, physics], out / f"transfer_{map_name}_{safe}.png")
-            trajectories_figure(physics, out / f"mujoco_{map_name}_{safe}_trajectories.png")
-        name, policy = demo_policies(map_name)[0]
+            transfer.rows.append(transfer_row(grid_same, physics))
+            coverage_figure([grid_same, physics], out / f"transfer_{label}_{safe}.png")
+            trajectories_figure(physics, out / f"mujoco_{label}_{safe}_trajectories.png")
+        name, policy = policies[0]
         start = tuple(
             int(v) for v in np.argwhere(grid_map.landing)[len(np.argwhere(grid_map.landing)) // 2]
         )
-        stem = f"mission_{map_name}"
+        stem = f"mission_{label}"
         outcome = fly_mission(
             policy, grid_map, budget=50, start=start, rrd=out / f"{stem}.rrd",
             video=out / f"{stem}_chase.mp4", onboard_video=out / f"{stem}_onboard.mp4",
+            progress=progress,
         )  # fmt: skip
         missions.append(outcome)
     print("\nThe paper's protocol on the grid (every landing cell × budgets 25..75):")
-    print(format_table(grid_rows, ["map", "policy", "landing", "coverage", "paper landing"]))
+    print(grid_table.render())
     print(f"\nGrid vs MuJoCo (every landing cell × budgets {budgets[0]}..{budgets[-1]} step "
           f"{budget_step}):")  # fmt: skip
-    columns = ["map", "policy", "episodes", "grid landing", "mujoco landing", "grid coverage",
-               "mujoco coverage", "J/action", "nfz viol."]  # fmt: skip
-    print(format_table(rows, columns))
-    atomic_write_text(out / "transfer.json", json.dumps(rows, indent=2))
+    print(transfer.render())
+    write_tables(out / "tables.json", {"grid": grid_table, "transfer": transfer})
     print("\nOne mission per map, flown in MuJoCo (budget 50):")
     for m in missions:
         result = "landed" if m.landed else f"crashed ({m.crash_reason})"

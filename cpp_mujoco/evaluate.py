@@ -1,36 +1,57 @@
-"""The paper's evaluation protocol (DESIGN §7): every landing cell × every budget, greedy policy.
+"""The paper's evaluation protocol: every landing cell × every budget, greedy policy.
 
-All episodes of a protocol run at once in one batched :class:`GridMDP`, so a full protocol for a
-16×16 map takes about a second for a fast policy.
+On the grid, episodes run together in a batched :class:`GridMDP` — in chunks of at most
+``chunk_cells`` episode-cells, so memory does not grow with episodes × map size; each chunk is one
+:func:`~cpp_mujoco.episode.run_batch` (an episode start for the policy). In MuJoCo the episodes
+are flown one by one (:mod:`cpp_mujoco.physics.protocol`). A full grid protocol for a 16×16 map
+is one chunk and takes about a second for a fast policy. Every result carries the map it ran on
+(``grid_map``) and the conditions that produced its numbers.
 """
 
 from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
-from typing import Protocol
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, field, fields, is_dataclass
+from typing import Any
 
 import numpy as np
 
-from cpp_mujoco.grid.mdp import GridConfig, GridMDP, StepOutcome
+from cpp_mujoco.episode import OnBatchStep, run_batch
+from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.io import atomic_write_text
 from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.policy import Policy, as_policy
 
 PAPER_LANDING_RATIO = {"A": 0.9937, "B": 0.9978, "C": 0.9826}
 BACKENDS = ("grid", "mujoco")
+CHUNK_CELLS = 2**23  # grid protocol: episodes per batch × cells per map stays at most this
 
-
-class Policy(Protocol):
-    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """Actions (N,) for a batch of observations with leading dimension N."""
+__all__ = [
+    "BACKENDS",
+    "CHUNK_CELLS",
+    "PAPER_LANDING_RATIO",
+    "EvaluationResult",
+    "Policy",  # defined in cpp_mujoco.policy; importable here as before
+    "atomic_write_text",  # from cpp_mujoco.io; importable here as before
+    "coverage_upper_bound",
+    "coverage_upper_bounds",
+    "evaluate",
+    "protocol_budgets",
+    "protocol_episodes",
+]
 
 
 @dataclass
 class EvaluationResult:
-    """Per-episode outcomes of one protocol run; ratios and the per-budget table derive."""
+    """Per-episode outcomes of one protocol run; ratios and the per-budget table derive.
 
-    map_name: str
+    ``grid_map`` is the map actually evaluated (``map_name`` is its unambiguous label);
+    ``conditions`` records what else decided the numbers (backend, budgets, options, version).
+    """
+
+    grid_map: GridMap
     policy_name: str
     backend: str
     starts: np.ndarray  # (E, 2) row, col
@@ -42,6 +63,12 @@ class EvaluationResult:
     trajectories: np.ndarray  # (E, T+1) flat cells visited, -1 after the end
     upper_bound: dict[int, float] = field(default_factory=dict)  # budget → coverage bound
     physics: dict[str, np.ndarray] = field(default_factory=dict)  # per-episode physical figures
+    conditions: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def map_name(self) -> str:
+        """The map's label: a user's ``A.png`` is ``A-<digest>``, never the bundled A."""
+        return self.grid_map.label
 
     @property
     def landing_ratio(self) -> float:
@@ -69,6 +96,7 @@ class EvaluationResult:
         return rows
 
     def summary(self) -> dict[str, object]:
+        """Headline figures with the map's identity and the run's conditions."""
         physics = {}
         if self.physics:
             moves = np.maximum(self.steps, 1)
@@ -79,7 +107,7 @@ class EvaluationResult:
                 "mean_flight_time_s": float(self.physics["flight_time_s"].mean()),
             }
         return {
-            "map": self.map_name,
+            **self.grid_map.identity(),
             "policy": self.policy_name,
             "backend": self.backend,
             "episodes": int(self.landed.size),
@@ -88,20 +116,22 @@ class EvaluationResult:
             "mean_return": float(self.returns.mean()),
             "mean_steps": float(self.steps.mean()),
             **physics,
+            "conditions": self.conditions,
         }
 
     def to_json(self, path: str | os.PathLike) -> None:
         """Write summary and per-budget table atomically."""
-        atomic_write_text(
-            path, json.dumps({**self.summary(), "per_budget": self.per_budget}, indent=2)
-        )
+        data = {**self.summary(), "per_budget": self.per_budget}
+        atomic_write_text(path, json.dumps(data, indent=2, default=_plain))
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    tmp = f"{os.fspath(path)}.tmp"
-    with open(tmp, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+def _plain(value: Any) -> Any:
+    """JSON for numpy scalars and arrays in conditions (options given as numpy values)."""
+    if isinstance(value, np.generic | np.ndarray):
+        return value.tolist()
+    if is_dataclass(value) and not isinstance(value, type):
+        return asdict(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
 
 
 def coverage_upper_bound(grid_map: GridMap, budget: int, fov_side: int = 3) -> float:
@@ -119,16 +149,27 @@ def coverage_upper_bounds(
     d the flight distance to the landing zone; the path sees at most ``fov_side²`` cells at its
     first step and ``fov_side`` new cells per further move (one action is the landing).
     """
-    from cpp_mujoco.planners.graph import build_graph
+    from cpp_mujoco.grid.graph import build_graph
 
-    g = build_graph(grid_map, fov_side)  # one all-pairs distance table for every budget
+    g = build_graph(grid_map, fov_side)  # one way-home table for every budget
     bounds = {}
     for budget in {int(b) for b in budgets}:
         visitable = 2 * (g.home - 1) + 1 <= budget
-        visible = int(g.fov_targets[visitable].any(axis=0).sum())
+        seen = np.zeros(g.num_cells, dtype=bool)
+        seen[g.fov_cells[visitable][g.fov_targets[visitable]]] = True
+        visible = int(seen.sum())
         seeable = fov_side**2 + fov_side * max(budget - 2, 0)
         bounds[budget] = float(min(visible, seeable) / grid_map.target.sum())
     return bounds
+
+
+def protocol_budgets(config: GridConfig | None = None, step: int = 1) -> list[int]:
+    """The protocol's budgets: the config's min..max every ``step``, the max always included
+    (so a coarse protocol still ends where the full one does)."""
+    config = config or GridConfig()
+    if step < 1:
+        raise ValueError(f"budget step must be >= 1, got {step}")
+    return sorted({*range(config.min_budget, config.max_budget + 1, step), config.max_budget})
 
 
 def protocol_episodes(grid_map: GridMap, budgets: Iterable[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -139,7 +180,7 @@ def protocol_episodes(grid_map: GridMap, budgets: Iterable[int]) -> tuple[np.nda
 
 
 def evaluate(
-    policy: Policy,
+    policy: Policy | Any,
     map: str | os.PathLike | GridMap,  # noqa: A002 - matches the env keyword
     *,
     backend: str = "grid",
@@ -149,90 +190,166 @@ def evaluate(
     workers: int | None = None,
     progress: bool = False,
     env_kwargs: dict | None = None,
-    on_step: Callable[[dict, np.ndarray, StepOutcome, np.ndarray], None] | None = None,
+    on_step: OnBatchStep | None = None,
+    chunk_cells: int = CHUNK_CELLS,
 ) -> EvaluationResult:
     """Run the full protocol for ``policy`` on ``map``; budgets default to the config's range.
 
+    ``policy``: anything with batched ``act`` (optionally ``reset``), an SB3 model (its
+    ``predict``, through :class:`~cpp_mujoco.policy.SB3Policy`) or a plain callable.
     ``backend="mujoco"`` flies every episode in physics, over ``workers`` processes (default:
-    all cores), with ``env_kwargs`` for the physics env (``wind_speed=6`` …).
-    ``on_step(observation, actions, outcome, active)`` (grid only) sees every batched step — the
-    agent's demonstrations are recorded through it.
+    all cores). ``env_kwargs``: :class:`GridConfig` fields (either backend) and, for MuJoCo,
+    physics options (``wind_speed=6`` …); an option the backend does not know is an error.
+    ``on_step(observation, actions, outcome, active)`` (grid only, one chunk) sees every batched
+    step — the agent's demonstrations are recorded through it. ``progress``: a tqdm bar.
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; available: {', '.join(BACKENDS)}")
     if on_step is not None and backend != "grid":
         raise ValueError("on_step is only available with backend='grid'")
+    if chunk_cells < 1:
+        raise ValueError(f"chunk_cells must be >= 1, got {chunk_cells}")
+    policy = as_policy(policy)
     grid_map = load_map(map)
-    config = config or GridConfig()
+    config, physics_kwargs = _split_options(backend, config, env_kwargs)
     if budgets is None:
-        budgets = range(config.min_budget, config.max_budget + 1)
+        budgets = protocol_budgets(config)
     starts, budget_per_episode = protocol_episodes(grid_map, budgets)
+    if budget_per_episode.size == 0:
+        raise ValueError("no budgets to evaluate")
     name = policy_name or getattr(policy, "name", type(policy).__name__)
     bounds = coverage_upper_bounds(grid_map, budget_per_episode, config.fov_side)
+    conditions = _conditions(backend, budget_per_episode, config, physics_kwargs)
     if backend == "mujoco":
-        return _evaluate_physics(
-            policy, grid_map, starts, budget_per_episode, name, bounds, workers, progress,
-            {**(env_kwargs or {}), "fov_side": config.fov_side},
+        outcome = _run_physics(
+            policy, grid_map, starts, budget_per_episode, config, physics_kwargs, workers,
+            progress, conditions,
         )  # fmt: skip
-    mdp = GridMDP(grid_map, len(starts), config)
-    mdp.reset(np.random.default_rng(0), start=starts, budget=budget_per_episode)
-    returns = np.zeros(len(starts))
-    trail = [mdp.position.copy()]
-    while not mdp.done.all():
-        active = ~mdp.done
-        obs = mdp.observation()
-        actions = np.asarray(policy.act(obs), dtype=np.int64).reshape(-1)
-        out = mdp.step(actions, active=active)
-        if on_step is not None:
-            on_step(obs, actions, out, active)
-        returns += out.reward
-        trail.append(np.where(active, mdp.position, -1))
+    else:
+        per_chunk = max(1, chunk_cells // grid_map.landing.size)
+        conditions["chunk_episodes"] = min(per_chunk, len(starts))
+        if on_step is not None and per_chunk < len(starts):
+            raise ValueError(
+                f"on_step needs the protocol in one batch: {len(starts)} episodes × "
+                f"{grid_map.landing.size} cells exceed chunk_cells={chunk_cells}"
+            )
+        outcome = _run_grid(
+            policy, grid_map, starts, budget_per_episode, config, per_chunk, on_step, progress
+        )
     return EvaluationResult(
-        map_name=grid_map.name,
+        grid_map=grid_map,
         policy_name=name,
         backend=backend,
         starts=starts,
         budgets=budget_per_episode,
-        landed=mdp.landed.copy(),
-        coverage=mdp.seen_targets / mdp.num_targets,
-        steps=mdp.steps.copy(),
-        returns=returns,
-        trajectories=np.stack(trail, axis=1),
         upper_bound=bounds,
+        conditions=conditions,
+        **outcome,
     )
 
 
-def _evaluate_physics(
-    policy, grid_map, starts, budgets, name, bounds, workers, progress, env_kwargs
-):
-    from cpp_mujoco.physics.episodes import fly_episodes
+def _split_options(
+    backend: str, config: GridConfig | None, env_kwargs: dict | None
+) -> tuple[GridConfig, dict[str, Any]]:
+    """(GridConfig with the grid options applied, the remaining options for the physics env)."""
+    options = dict(env_kwargs or {})
+    if "grid_config" in options:
+        raise ValueError("env_kwargs: give the grid config as config=, not env_kwargs")
+    grid_names = {f.name for f in fields(GridConfig)}
+    grid_kw = {k: options.pop(k) for k in list(options) if k in grid_names}
+    try:
+        config = GridConfig.from_kwargs(config, **grid_kw)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"env_kwargs: {exc}") from None
+    if options and backend == "grid":
+        raise ValueError(
+            f"env_kwargs {sorted(options)} are not grid options (known: {sorted(grid_names)}); "
+            "physics options need backend='mujoco'"
+        )
+    return config, options
 
-    records = fly_episodes(policy, grid_map, starts, budgets, workers, progress, env_kwargs)
-    length = max(len(r.cells) for r in records)
-    trajectories = np.full((len(records), length), -1, dtype=np.int64)
-    for i, r in enumerate(records):
-        trajectories[i, : len(r.cells)] = r.cells
 
-    def column(key: str, dtype=float) -> np.ndarray:
-        return np.array([getattr(r, key) for r in records], dtype=dtype)
+def _conditions(
+    backend: str, budgets: np.ndarray, config: GridConfig, env_kwargs: dict
+) -> dict[str, Any]:
+    """What besides map and policy decided the numbers."""
+    from cpp_mujoco import __version__
 
-    return EvaluationResult(
-        map_name=grid_map.name,
-        policy_name=name,
-        backend="mujoco",
-        starts=starts,
-        budgets=budgets,
-        landed=column("landed", bool),
-        coverage=column("coverage"),
-        steps=column("steps", np.int64),
-        returns=column("total_reward"),
-        trajectories=trajectories,
-        upper_bound=bounds,
-        physics={
-            "energy_used_j": column("energy_used_j"),
-            "flight_time_s": column("flight_time_s"),
-            "nfz_violations": column("nfz_violations", np.int64),
-            "crashed": column("crashed", bool),
-            "crash_reason": np.array([r.crash_reason or "" for r in records]),
-        },
-    )
+    values = sorted({int(b) for b in budgets})
+    gaps = set(np.diff(values).tolist())
+    step = int(gaps.pop()) if len(gaps) == 1 else None
+    budget_info: dict[str, Any] = {"min": values[0], "max": values[-1], "step": step}
+    if step is None:
+        budget_info["values"] = values
+    return {
+        "backend": backend,
+        "episodes": int(budgets.size),
+        "budgets": budget_info,
+        "fov_side": config.fov_side,
+        "grid_config": asdict(config),
+        "env_kwargs": dict(env_kwargs),
+        "package_version": __version__,
+    }
+
+
+def _run_grid(policy, grid_map, starts, budgets, config, per_chunk, on_step, progress):
+    """The grid protocol in chunks of ``per_chunk`` episodes; per-episode arrays as one batch."""
+    from tqdm import tqdm
+
+    parts = []
+    with tqdm(
+        total=len(starts), desc=f"grid {grid_map.label}", unit="ep", disable=not progress
+    ) as bar:
+        for chunk, lo in enumerate(range(0, len(starts), per_chunk)):
+            sl = slice(lo, lo + per_chunk)
+            parts.append(
+                _run_chunk(policy, grid_map, starts[sl], budgets[sl], config, chunk, on_step, bar)
+            )
+    length = max(p["trajectories"].shape[1] for p in parts)
+    trajectories = np.full((len(starts), length), -1, dtype=np.int64)
+    lo = 0
+    for p in parts:
+        t = p["trajectories"]
+        trajectories[lo : lo + len(t), : t.shape[1]] = t
+        lo += len(t)
+    keys = ("landed", "coverage", "steps", "returns")
+    joined = {k: np.concatenate([p[k] for p in parts]) for k in keys}
+    return {**joined, "trajectories": trajectories}
+
+
+def _run_chunk(policy, grid_map, starts, budgets, config, chunk, on_step, bar) -> dict:
+    """One batch of protocol episodes (the policy's episode start seeded by ``chunk``)."""
+    n = len(starts)
+    mdp = GridMDP(grid_map, n, config)
+    mdp.reset(np.random.default_rng(0), start=starts, budget=budgets)
+    returns = np.zeros(n)
+    trail = [mdp.position.copy()]
+
+    def record(obs, actions, out, active) -> None:
+        if on_step is not None:
+            on_step(obs, actions, out, active)
+        returns[:] += out.reward
+        trail.append(np.where(active, mdp.position, -1))
+        bar.update(int((active & mdp.done).sum()))
+
+    run_batch(mdp, policy, seed=chunk, on_step=record)
+    return {
+        "landed": mdp.landed.copy(),
+        "coverage": mdp.seen_targets / mdp.num_targets,
+        "steps": mdp.steps.copy(),
+        "returns": returns,
+        "trajectories": np.stack(trail, axis=1),
+    }
+
+
+def _run_physics(
+    policy, grid_map, starts, budgets, config, physics_kwargs, workers, progress, conditions
+) -> dict:
+    """Fly the protocol in MuJoCo; the env is built here first, so bad options fail at once."""
+    from cpp_mujoco.physics.protocol import fly_episodes, make_env, records_to_arrays
+
+    env_kwargs = {**physics_kwargs, "grid_config": config}
+    env = make_env(grid_map, env_kwargs)
+    conditions["physics_config"] = asdict(env.config)
+    records = fly_episodes(policy, grid_map, starts, budgets, workers, progress, env_kwargs, env)
+    return records_to_arrays(records)

@@ -37,6 +37,10 @@ def _reason(exc: BaseException, folder: Path) -> str:
             return "no space left on device"
     except OSError:
         pass
+    if isinstance(exc, RuntimeError) and any(
+        m in str(exc) for m in ("unexpected pos", "file write failed")
+    ):  # torch's stream writer hides the OS error behind its own words
+        return "write failed (disk full or file size limit reached)"
     text = str(exc).strip().splitlines()
     return f"{type(exc).__name__}: {text[-1][:200]}" if text else type(exc).__name__
 
@@ -62,17 +66,26 @@ def atomic_path(path: str | os.PathLike, *, fsync: bool = True) -> Iterator[Path
     tmp = Path(tmp_name)
     try:
         yield tmp
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; results are for everyone
         if fsync:
             with open(tmp, "rb") as f:
                 os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException as exc:
+        wrap = isinstance(exc, (OSError, RuntimeError)) and not isinstance(exc, WriteError)
+        reason = _reason(exc, path.parent) if wrap else ""  # before removing frees the space
         tmp.unlink(missing_ok=True)
-        if isinstance(exc, (OSError, RuntimeError)) and not isinstance(exc, WriteError):
+        if wrap:
             raise WriteError(
-                f"cannot write {path}: {_reason(exc, path.parent)}; any previous file is unchanged"
+                f"cannot write {path}: {reason}; any previous file is unchanged"
             ) from None
         raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:

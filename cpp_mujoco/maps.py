@@ -8,17 +8,24 @@ from __future__ import annotations
 
 import hashlib
 import os
+import struct
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, UnidentifiedImageError
+from PIL import Image
 
 from cpp_mujoco.io import atomic_path, resolve_named_file
 from cpp_mujoco.resources import bundled_dir
 
-MAX_SIDE = 256  # larger grids are almost certainly a wrong file, and would not fit the network
+# The largest map side accepted. Memory grows with the cells (not cells²): the grid env, a 64-env
+# batch and both planners on a 256×256 map peak at ~0.7 GB, 128×128 at ~0.13 GB
+# (scripts/peak_memory.py; a full protocol from 36 landing cells: 0.8 GB and 0.27 GB). The beam
+# search's packed field of view is cells²/8 bytes (0.5 GB at 256×256), so larger maps are
+# refused at load rather than risk running out.
+MAX_SIDE = 256
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 LAYERS = ("landing", "target", "nfz")
 
 
@@ -29,6 +36,13 @@ class MapError(ValueError):
 def _first_cell(mask: np.ndarray) -> tuple[int, int]:
     r, c = np.argwhere(mask)[0]
     return int(r), int(c)
+
+
+def _check_size(h: int, w: int, what: str = "map") -> None:
+    if not (1 <= h <= MAX_SIDE and 1 <= w <= MAX_SIDE):
+        raise MapError(
+            f"{what} of {h}x{w} cells exceeds the map size limit of 1..{MAX_SIDE} cells per side"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,6 +68,7 @@ class GridMap:
             value = np.asarray(getattr(self, layer))
             if value.ndim != 2:
                 raise MapError(f"layer {layer!r} must be 2-D, got shape {value.shape}")
+            _check_size(*value.shape)  # before copying: never allocate for a map we refuse
             layers[layer] = value.astype(bool, copy=True)
             layers[layer].flags.writeable = False
             object.__setattr__(self, layer, layers[layer])
@@ -62,9 +77,6 @@ class GridMap:
             raise MapError(
                 f"layers have different shapes: { {k: v.shape for k, v in layers.items()} }"
             )
-        h, w = self.landing.shape
-        if not (1 <= h <= MAX_SIDE and 1 <= w <= MAX_SIDE):
-            raise MapError(f"map of {h}x{w} cells is outside 1..{MAX_SIDE} per side")
         both = self.landing & self.nfz
         if both.any():
             r, c = _first_cell(both)
@@ -121,7 +133,7 @@ class GridMap:
     def save(self, path: str | os.PathLike) -> None:
         """Write as PNG atomically (a crash never leaves a half-written map)."""
         with atomic_path(path) as tmp:
-            Image.fromarray(self.to_rgb(), mode="RGB").save(tmp, format="PNG")
+            Image.fromarray(self.to_rgb()).save(tmp, format="PNG")  # (H, W, 3) uint8 is RGB
 
     @classmethod
     def from_ascii(cls, rows: list[str] | str, name: str = "custom") -> GridMap:
@@ -150,12 +162,25 @@ def bundled_maps() -> list[str]:
     return sorted(p.stem for p in bundled_dir("maps").glob("*.png"))
 
 
+def _png_header_size(path: Path) -> tuple[int, int] | None:
+    """(width, height) from a PNG's IHDR chunk, read without decoding; None if not a PNG."""
+    with open(path, "rb") as f:
+        head = f.read(24)
+    if head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
+        return None
+    return struct.unpack(">II", head[16:24])
+
+
 def _read_png(path: Path) -> np.ndarray:
+    """The image's RGB pixels; every failure (a size over the limit checked from the header
+    before anything is decoded, a decompression bomb, a broken file) is a one-line MapError."""
     try:
+        size = _png_header_size(path)
+        if size is not None:
+            _check_size(size[1], size[0], f"{path}: image")
         with Image.open(path) as img:
             w, h = img.size
-            if w > MAX_SIDE or h > MAX_SIDE:
-                raise MapError(f"{path}: image of {w}x{h} pixels exceeds {MAX_SIDE} cells per side")
+            _check_size(h, w, f"{path}: image")
             if img.mode not in ("RGB", "RGBA"):
                 raise MapError(f"{path}: image mode {img.mode!r}; a map must be RGB or RGBA")
             return np.asarray(img.convert("RGB"))
@@ -163,8 +188,10 @@ def _read_png(path: Path) -> np.ndarray:
         raise
     except FileNotFoundError as e:
         raise MapError(f"{path}: no such map file") from e
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as e:
-        raise MapError(f"{path}: unreadable or truncated PNG ({e})") from e
+    except Image.DecompressionBombError as e:  # not an OSError: PIL's own pixel limit
+        raise MapError(f"{path}: image too large ({e})") from e
+    except Exception as e:  # noqa: BLE001 - whatever PIL raises on a bad file is bad input
+        raise MapError(f"{path}: unreadable or truncated PNG ({type(e).__name__}: {e})") from e
 
 
 def load_map(source: str | os.PathLike | GridMap) -> GridMap:

@@ -1,12 +1,20 @@
 """Fly one mission with a policy and review it: a Rerun recording, chase and onboard videos.
 
-Works with either backend. In MuJoCo, the recorder and the cameras are fed at the camera frame
-rate from inside the flight (``Flight.on_frame``); on the grid, poses are the cell centres at
-cruise altitude, one per action, and the footprint is the 3×3 square.
+The episode is the protocol's own :func:`~cpp_mujoco.episode.run_episode`; the review is added
+through its hooks (the files are opened after the reset, so a bad start writes nothing). Works
+with either backend. In MuJoCo, the recorder and the cameras are fed at the camera frame rate
+from inside the flight (``Flight.on_frame``); on the grid, poses are the cell centres at cruise
+altitude, one per action, and the footprint is the 3×3 square.
+
+An interrupted mission (Ctrl-C, or SIGTERM inside :func:`cpp_mujoco.signals.interruptible`)
+finalises its files before the interrupt goes on: the recording gets its footer and a last event
+saying it was cut, each video is finalised as ``<stem>.partial.mp4``; the exception carries the
+files in ``files_finalised`` (kind → path) for the message.
 """
 
 from __future__ import annotations
 
+import itertools
 import os
 import time
 from dataclasses import asdict, dataclass, field
@@ -16,14 +24,19 @@ import gymnasium as gym
 import numpy as np
 
 import cpp_mujoco  # noqa: F401  (registers the envs)
+from cpp_mujoco.episode import run_episode
 from cpp_mujoco.maps import GridMap, load_map
+
+GRID_ACTION_S = 3.0  # the grid backend's clock in the recording: seconds per action
 
 
 @dataclass
 class MissionOutcome:
-    """Summary of one flown mission."""
+    """Summary of one flown mission; ``map`` is the map's unambiguous label, ``conditions`` the
+    seed and env options that, with map, policy and backend, decide the numbers."""
 
     map: str
+    policy: str
     backend: str
     start: tuple[int, int]
     budget: int
@@ -39,13 +52,10 @@ class MissionOutcome:
     wall_time_s: float
     actions: list[int] = field(default_factory=list)
     files: dict[str, str] = field(default_factory=dict)
+    conditions: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
-
-
-def _batch(obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    return {k: np.asarray(v)[None] for k, v in obs.items()}
 
 
 def fly_mission(
@@ -60,14 +70,17 @@ def fly_mission(
     video: str | os.PathLike | None = None,
     onboard_video: str | os.PathLike | None = None,
     image_every: int = 2,
+    progress: bool = False,
     **env_kwargs: Any,
 ) -> MissionOutcome:
     """Fly one episode greedily with ``policy`` (anything with batched ``act``).
 
     ``rrd``: write a Rerun recording; ``video`` / ``onboard_video``: MP4s of the chase and the
     downward camera (MuJoCo only). ``image_every``: log every n-th camera frame to the recording.
-    ``env_kwargs`` go to the env (``wind_speed=6`` …).
+    ``env_kwargs`` go to the env (``wind_speed=6`` …). ``progress``: a tqdm bar over actions.
     """
+    from tqdm import tqdm
+
     from cpp_mujoco.review.recording import MissionRecorder
 
     grid_map = load_map(map)
@@ -79,64 +92,111 @@ def fly_mission(
     if backend == "grid" and (video or onboard_video):
         raise ValueError("videos need the mujoco backend")
     env = gym.make(env_id, map=grid_map, **env_kwargs).unwrapped
-    obs, info = env.reset(seed=seed, options={"start": start, "budget": budget})
     physics = backend == "mujoco"
     cell_size = env.config.cell_size if physics else 4.0
     altitude = env.config.altitude if physics else 6.0
-    recorder = MissionRecorder(rrd, grid_map, cell_size, altitude) if rrd else None
-    cameras, writers = [], []
+    review: dict[str, Any] = {"recorder": None, "cameras": [], "writers": []}
+    bar = tqdm(total=budget, desc=f"fly {grid_map.label}", unit="action", disable=not progress)
+    count = itertools.count(1)
+
+    def open_review(obs, info) -> None:
+        """After the reset (a bad start opens no file): the recording, the flight's cameras."""
+        if rrd:
+            about = {"policy": _policy_name(policy), "backend": backend, "budget": budget,
+                     "start": tuple(start), "seed": seed, **env_kwargs}  # fmt: skip
+            review["recorder"] = MissionRecorder(
+                rrd, grid_map, cell_size, altitude, properties=about
+            )
+        recorder = review["recorder"]
+        if physics:  # fills cameras and writers as it opens them, so all get closed
+            _attach_flight_review(env, recorder, video, onboard_video, image_every,
+                                  review["cameras"], review["writers"])  # fmt: skip
+        elif recorder is not None:
+            _log_grid_pose(recorder, grid_map, info["position"], cell_size, altitude, 0.0)
+
+    def log_step(action, obs, reward, info) -> None:
+        bar.update()
+        sim_time = info.get("flight_time_s", next(count) * GRID_ACTION_S)
+        recorder = review["recorder"]
+        if recorder is None:
+            return
+        if not physics:
+            _log_grid_pose(recorder, grid_map, info["position"], cell_size, altitude, sim_time)
+        cell = info["position"][0] * grid_map.shape[1] + info["position"][1]
+        recorder.log_step(sim_time, action, reward, info, obs["coverage"], cell)
+
     wall = time.perf_counter()
     try:
-        if physics:
-            cameras, writers = _attach_flight_review(
-                env, recorder, video, onboard_video, image_every
-            )
-        actions, total = [], 0.0
-        sim_time = 0.0
-        if recorder is not None and not physics:
-            _log_grid_pose(recorder, grid_map, info["position"], cell_size, altitude, 0.0)
-        terminated = False
-        while not terminated:
-            action = int(np.asarray(policy.act(_batch(obs)))[0])
-            obs, reward, terminated, _, info = env.step(action)
-            actions.append(action)
-            total += reward
-            sim_time = info.get("flight_time_s", len(actions) * 3.0)
-            if recorder is not None:
-                if not physics:
-                    _log_grid_pose(
-                        recorder, grid_map, info["position"], cell_size, altitude, sim_time
-                    )
-                cell = info["position"][0] * grid_map.shape[1] + info["position"][1]
-                recorder.log_step(sim_time, action, reward, info, obs["coverage"], cell)
+        episode = run_episode(
+            env, policy, seed=seed, options={"start": start, "budget": budget},
+            on_start=open_review, on_step=log_step,
+        )  # fmt: skip
+    except BaseException as exc:
+        bar.close()
+        files = _finalise(review["recorder"], review["writers"], review["cameras"], _reason(exc))
+        exc.files_finalised = files  # type: ignore[attr-defined]
+        raise
     finally:
-        if recorder is not None:
-            recorder.close()
-        for writer in writers:
-            writer.close()
-        for camera in cameras:
-            camera.close()
         if physics:
             env.flight.on_frame = None
-    files = {"rrd": rrd, "video": video, "onboard_video": onboard_video}
+    bar.close()
+    files = _finalise(review["recorder"], review["writers"], review["cameras"], None)
+    info = episode.info
     return MissionOutcome(
-        map=grid_map.name,
+        map=grid_map.label,
+        policy=_policy_name(policy),
         backend=backend,
         start=tuple(start),
         budget=budget,
-        steps=len(actions),
+        steps=episode.steps,
         landed=info["landed"],
         crashed=info["crashed"],
         crash_reason=info.get("crash_reason"),
         coverage_ratio=info["coverage_ratio"],
-        total_reward=total,
+        total_reward=episode.total_reward,
         energy_used_j=info.get("energy_used_j", float("nan")),
-        flight_time_s=info.get("flight_time_s", sim_time),
+        flight_time_s=info.get("flight_time_s", episode.steps * GRID_ACTION_S),
         nfz_violations=info.get("nfz_violations", 0),
         wall_time_s=time.perf_counter() - wall,
-        actions=actions,
-        files={k: str(v) for k, v in files.items() if v},
+        actions=episode.actions,
+        files=files,
+        conditions={"seed": seed, **env_kwargs},
     )
+
+
+def _policy_name(policy) -> str:
+    return str(getattr(policy, "name", type(policy).__name__))
+
+
+def _reason(exc: BaseException) -> str:
+    from cpp_mujoco.signals import Terminated
+
+    if isinstance(exc, Terminated):
+        return "SIGTERM"
+    if isinstance(exc, KeyboardInterrupt):
+        return "Ctrl-C"
+    return f"{type(exc).__name__}: {str(exc)[:120]}"
+
+
+def _finalise(recorder, writers, cameras, interrupted: str | None) -> dict[str, str]:
+    """Close everything (each even if another fails); kind → path of each file written.
+    ``interrupted``: why the mission stopped early — videos become ``.partial.mp4``."""
+    files: dict[str, str] = {}
+    failure: BaseException | None = None
+    closers = [("rrd", lambda: recorder.close(interrupted))] if recorder is not None else []
+    closers += [(kind, lambda w=w: w.close(partial=bool(interrupted))) for kind, w in writers]
+    closers += [("", camera.close) for camera in cameras]
+    for kind, close in closers:
+        try:
+            path = close()
+        except Exception as exc:  # noqa: BLE001 - the first failure is raised below
+            failure = failure or exc
+            continue
+        if kind and path is not None:
+            files[kind] = str(path)
+    if failure is not None and interrupted is None:
+        raise failure
+    return files
 
 
 def _log_grid_pose(recorder, grid_map, position, cell_size, altitude, time_s) -> None:
@@ -149,34 +209,26 @@ def _log_grid_pose(recorder, grid_map, position, cell_size, altitude, time_s) ->
     recorder.log_pose(time_s, [x, y, altitude], (1, 0, 0, 0), square)
 
 
-def _attach_flight_review(env, recorder, video, onboard_video, image_every):
+def _attach_flight_review(env, recorder, video, onboard_video, image_every, cameras, writers):
     """Hook the recorder and the cameras into the flight's camera frames."""
-    from cpp_mujoco.review.rendering import OffscreenCamera, VideoWriter
+    from cpp_mujoco.review.rendering import OffscreenCamera, VideoWriter, chase_camera
 
     flight, data, model = env.flight, env.data, env.model
     fps = env.config.camera_rate
-    cameras, writers = [], []
     onboard = None
     if onboard_video or recorder is not None:
         onboard = OffscreenCamera(model, camera="quadrotor/downward")
         cameras.append(onboard)
     chase = None
     if video:
-        chase = OffscreenCamera(
-            model,
-            track_body="quadrotor/core",
-            width=480,
-            height=360,
-            distance=16.0,
-            elevation=-45.0,
-        )
+        chase = chase_camera(model)
         cameras.append(chase)
-        writers.append(VideoWriter(video, fps=fps))
+        writers.append(("video", VideoWriter(video, fps=fps)))
     onboard_writer = None
     if onboard_video:
         onboard_writer = VideoWriter(onboard_video, fps=fps)
-        writers.append(onboard_writer)
-    chase_writer = writers[0] if video else None
+        writers.append(("onboard_video", onboard_writer))
+    chase_writer = writers[0][1] if video else None
     body = flight.params.body_id
     count = 0
 
@@ -200,4 +252,3 @@ def _attach_flight_review(env, recorder, video, onboard_video, image_every):
         count += 1
 
     flight.on_frame = on_frame
-    return cameras, writers

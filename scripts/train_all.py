@@ -4,30 +4,60 @@
 
 Each map runs ``cpp-mujoco train --map M --seed 0 --out OUT/M --max-minutes MIN`` (through the same
 argparse handler), then evaluates ``best.pt`` on the full protocol; ``--install`` copies it to
-``cpp_mujoco/agent/bundled/M.pt`` (weights + metadata only).
+``cpp_mujoco/agent/bundled/M.pt`` (weights + metadata only). The script stops at the first map
+whose training fails, is refused or is interrupted, and prints how to go on; run again, it resumes
+every run folder that holds a ``checkpoint.pt``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import shutil
+import shlex
+import sys
 import time
 from pathlib import Path
 
 from cpp_mujoco.agent import BUNDLED_DIR, load_agent
-from cpp_mujoco.agent.cli import main as train_main
+from cpp_mujoco.cli import main as train_main  # the `cpp-mujoco` command itself
 from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
+
+
+def _train(cmd: list[str]) -> int:
+    """``cpp-mujoco train`` in this process; its exit status (argparse errors exit 2)."""
+    try:
+        return train_main(cmd)
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else 2
+
+
+def _stopped(m: str, out: Path, code: int, argv: list[str] | None) -> str:
+    """Why the script stops at map ``m`` and how to go on; maps after it did not run."""
+    again = shlex.join(
+        ["python", "scripts/train_all.py", *(sys.argv[1:] if argv is None else argv)]
+    )
+    if code in (130, 143):
+        return (
+            f"train_all: map {m} stopped by {'SIGINT' if code == 130 else 'SIGTERM'} after saving "
+            f"{out / 'checkpoint.pt'}; resume it (and the maps after it) with: {again}"
+        )
+    return (
+        f"train_all: training map {m} failed (exit {code}, error above); the maps after it did "
+        f"not run and summary.json is unchanged. Fix the cause, then run again: {again} "
+        "(run folders holding a checkpoint.pt are resumed; for a non-empty folder without one "
+        "give another --out or add -- --overwrite)"
+    )
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    p.add_argument("--out", default="runs/bundled")
-    p.add_argument("--maps", nargs="+", default=["A", "B", "C"])
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--minutes", type=float, default=20.0)
+    p.add_argument("--out", default="runs/bundled", help="one run folder per map in here")
+    p.add_argument("--maps", nargs="+", default=["A", "B", "C"], help="bundled maps")
+    p.add_argument("--seed", type=int, default=0, help="training seed")
+    p.add_argument("--minutes", type=float, default=20.0, help="training minutes per map")
     p.add_argument("--install", action="store_true", help="copy best.pt into the package")
     p.add_argument("extra", nargs="*", help="further train options, after --")
     args = p.parse_args(argv)
@@ -36,10 +66,20 @@ def main(argv=None) -> int:
         out = Path(args.out) / m
         cmd = ["train", "--map", m, "--seed", str(args.seed), "--out", str(out)]
         cmd += ["--max-minutes", str(args.minutes), "--no-progress", *args.extra]
-        if (out / "checkpoint.pt").exists():
+        if (out / "checkpoint.pt").exists() and "--overwrite" not in args.extra:
             cmd.append("--resume")
         t0 = time.time()
-        train_main(cmd)
+        code = _train(cmd)
+        if code != 0:  # a refused folder or a bad option must not fall through to a stale best.pt
+            print(_stopped(m, out, code, argv), file=sys.stderr)
+            return code
+        if not (out / "best.pt").is_file():  # no evaluation ran: nothing was selected
+            print(
+                f"train_all: {out / 'best.pt'} is missing: the run ended before its first "
+                "evaluation; give more --minutes (or -- --eval-every N with a smaller N)",
+                file=sys.stderr,
+            )
+            return 1
         res = evaluate(load_agent(out / "best.pt"), m)
         summary[m] = {
             "command": "cpp-mujoco " + " ".join(cmd),
@@ -49,8 +89,8 @@ def main(argv=None) -> int:
         }
         print(json.dumps({m: summary[m]}), flush=True)
         if args.install:
-            shutil.copyfile(out / "best.pt", BUNDLED_DIR / f"{m}.pt")
-    (Path(args.out) / "summary.json").write_text(json.dumps(summary, indent=2))
+            atomic_write_bytes(BUNDLED_DIR / f"{m}.pt", (out / "best.pt").read_bytes())
+    atomic_write_text(Path(args.out) / "summary.json", json.dumps(summary, indent=2))
     return 0
 
 

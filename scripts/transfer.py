@@ -9,86 +9,68 @@ Writes out/transfer/{transfer.md, transfer.json, wind_sweep.png, coverage_*.png}
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from cpp_mujoco.demo import demo_policies, transfer_row  # noqa: E402
-from cpp_mujoco.evaluate import atomic_write_text, evaluate  # noqa: E402
-from cpp_mujoco.maps import bundled_maps  # noqa: E402
-from cpp_mujoco.review.plots import coverage_figure  # noqa: E402
-from cpp_mujoco.review.tables import format_table  # noqa: E402
+from cpp_mujoco.evaluate import evaluate, protocol_budgets
+from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.review.plots import coverage_figure, wind_sweep_figure
+from cpp_mujoco.review.results import (
+    TRANSFER_COLUMNS,
+    WIND_COLUMNS,
+    Table,
+    demo_policies,
+    file_part,
+    transfer_row,
+    wind_row,
+    write_rendered,
+    write_tables,
+)
 
 WINDS = (0.0, 3.0, 6.0, 9.0)
 
 
-def markdown(rows: list[dict]) -> str:
-    columns = list(rows[0])
-    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-    lines += ["| " + " | ".join(str(r[c]) for c in columns) + " |" for r in rows]
-    return "\n".join(lines)
-
-
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--maps", nargs="+", default=bundled_maps())
+    parser.add_argument("--maps", nargs="+", default=bundled_maps(), help="names or PNG paths")
     parser.add_argument("--budget-step", type=int, default=1, help="MuJoCo protocol budgets step")
     parser.add_argument("--sweep-step", type=int, default=5, help="wind sweep budgets step")
     parser.add_argument("--gust-std", type=float, default=1.0, help="gusts in the wind sweep")
-    parser.add_argument("--workers", type=int, default=None)
-    parser.add_argument("--out", default="out/transfer")
-    args = parser.parse_args()
+    parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
+    parser.add_argument("--out", default="out/transfer", help="output folder")
+    args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rows, sweep = [], []
-    for map_name in args.maps:
-        name, policy = demo_policies(map_name)[0]  # the bundled agent where there is one
-        budgets = list(range(25, 76, args.budget_step))
-        grid = evaluate(policy, map_name, budgets=budgets, policy_name=name)
-        physics = evaluate(policy, map_name, backend="mujoco", budgets=budgets,
-                           policy_name=name, workers=args.workers, progress=True)  # fmt: skip
-        rows.append(transfer_row(grid, physics))
-        coverage_figure([grid, physics], out / f"coverage_{map_name}.png")
-        sweep_budgets = list(range(25, 76, args.sweep_step))
-        for wind in WINDS:
+    progress = sys.stderr.isatty()
+    grid_maps = [load_map(m) for m in args.maps]
+    transfer = Table("grid vs MuJoCo, the same episodes", TRANSFER_COLUMNS)
+    wind = Table("MuJoCo under steady wind and gusts", WIND_COLUMNS)
+    sweep = []
+    for grid_map in grid_maps:
+        map_name = grid_map.label
+        name, policy = demo_policies(grid_map)[0]  # the bundled agent where there is one
+        budgets = protocol_budgets(step=args.budget_step)
+        grid = evaluate(policy, grid_map, budgets=budgets, policy_name=name)
+        physics = evaluate(policy, grid_map, backend="mujoco", budgets=budgets,
+                           policy_name=name, workers=args.workers, progress=progress)  # fmt: skip
+        transfer.rows.append(transfer_row(grid, physics))
+        coverage_figure([grid, physics], out / f"coverage_{file_part(map_name)}.png")
+        sweep_budgets = protocol_budgets(step=args.sweep_step)
+        for speed in WINDS:
             result = evaluate(
-                policy, map_name, backend="mujoco", budgets=sweep_budgets, policy_name=name,
-                workers=args.workers, progress=True,
-                env_kwargs={"wind_speed": wind, "gust_std": args.gust_std if wind else 0.0},
+                policy, grid_map, backend="mujoco", budgets=sweep_budgets, policy_name=name,
+                workers=args.workers, progress=progress,
+                env_kwargs={"wind_speed": speed, "gust_std": args.gust_std if speed else 0.0},
             )  # fmt: skip
-            s = result.summary()
-            sweep.append({"map": map_name, "policy": name, "wind m/s": wind,
-                          "landing": f"{s['landing_ratio']:.2%}",
-                          "coverage": f"{s['coverage_ratio']:.2%}",
-                          "J/action": f"{s['energy_per_action_j']:.0f}",
-                          "crashes": s["crashes"], "nfz viol.": s["nfz_violations"],
-                          "_landing": s["landing_ratio"],
-                          "_coverage": s["coverage_ratio"]})  # fmt: skip
-    shown = [{k: v for k, v in r.items() if not k.startswith("_")} for r in sweep]
-    print(format_table(rows, list(rows[0])))
+            sweep.append(result)
+            wind.rows.append(wind_row(result))
+    print(transfer.render())
     print()
-    print(format_table(shown, list(shown[0])))
-    atomic_write_text(
-        out / "transfer.json", json.dumps({"transfer": rows, "wind": shown}, indent=2)
-    )
-    atomic_write_text(out / "transfer.md", markdown(rows) + "\n\n" + markdown(shown) + "\n")
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for map_name in args.maps:
-        entries = [r for r in sweep if r["map"] == map_name]
-        winds = [r["wind m/s"] for r in entries]
-        axes[0].plot(winds, [r["_landing"] for r in entries], "o-", label=f"map {map_name}")
-        axes[1].plot(winds, [r["_coverage"] for r in entries], "o-", label=f"map {map_name}")
-    for ax, label in zip(axes, ("landing ratio", "coverage ratio"), strict=True):
-        ax.set_xlabel(f"steady wind, m/s (gusts σ = {args.gust_std:.1f} m/s)")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-        ax.legend()
-    fig.suptitle("Grid-trained agents in MuJoCo under wind")
-    fig.savefig(out / "wind_sweep.png", dpi=120, bbox_inches="tight")
+    print(wind.render())
+    tables = {"transfer": transfer, "wind": wind}
+    write_tables(out / "transfer.json", tables)
+    write_rendered(out / "transfer.md", tables, "markdown")
+    wind_sweep_figure(sweep, out / "wind_sweep.png", args.gust_std)
     print(f"\nwritten: {out}/transfer.md, transfer.json, wind_sweep.png, coverage_*.png")
 
 

@@ -138,12 +138,12 @@ def test_truncated_garbage_and_foreign_files(run_dir, tmp_path):
         (garbage, "not a torch checkpoint"),
         (foreign, "not a cpp_mujoco checkpoint"),
         (text, "not a torch checkpoint"),
-        (tmp_path / "missing.pt", "does not exist"),
+        (tmp_path / "missing.pt", "no such agent file"),
     ]:
         with pytest.raises(CheckpointError, match=match):
             load_agent(path)
 
 
 def test_unknown_bundled_name():
-    with pytest.raises(CheckpointError, match="no bundled agent"):
+    with pytest.raises(CheckpointError, match="unknown agent 'Z'; bundled: A, B, C"):
         load_agent("Z")

@@ -1,8 +1,10 @@
 """A short smoke training run improves over a random policy; CLI parsing; benchmark keys."""
 
 import argparse
+import dataclasses
 
 import numpy as np
+import pytest
 
 from cpp_mujoco.agent.cli import add_train_parser, config_from_args
 from cpp_mujoco.agent.config import TrainConfig
@@ -90,3 +92,27 @@ def test_guided_exploration_follows_planner_and_decays(tmp_path):
     assert trainer.guided_envs() == 2
     trainer.updates = 100
     assert trainer.guided_envs() == 0
+
+
+def test_train_help_states_each_default_once_and_explains_every_option(capsys):
+    from cpp_mujoco.agent.cli import _HELP
+    from cpp_mujoco.cli import main
+
+    names = [f.name for f in dataclasses.fields(TrainConfig)]
+    assert set(_HELP) == set(names)
+    assert all(len(_HELP[n].split()) >= 3 for n in names)  # a sentence, not the field's name
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
+    assert text.count("(default:") == len(names)  # each config option once, the flags never
+    assert "default: None" not in text and "--no-progress" in text
+    for name in names:
+        assert f"{_HELP[name]} (default: {getattr(TrainConfig(), name)})" in text
+
+
+def test_bad_option_value_names_the_option():
+    parser = argparse.ArgumentParser()
+    add_train_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["train", "--out", "x", "--eval-every", "0"])
+    with pytest.raises(ValueError, match="invalid option: --eval-every must be >= 1, got 0"):
+        config_from_args(args)

@@ -46,3 +46,65 @@ def test_bad_input_is_a_message_not_a_traceback(tmp_path, capsys):
     blocker.write_text("x")
     assert main(["maps", "A", "--out", str(blocker / "sub")]) == 2
     assert "cannot create output folder" in capsys.readouterr().err
+
+
+def _subcommands(parser):
+    return parser._subparsers._group_actions[0].choices  # noqa: SLF001
+
+
+def test_every_subcommand_is_registered_the_same_way():
+    # before: train set args.handler and kept its own convention beside cli.py's func
+    for name, sub in _subcommands(build_parser()).items():
+        assert callable(sub.get_default("func")), name
+        assert sub.get_default("handler") is None, name
+
+
+def test_help_without_train_options_lists_the_same_commands():
+    light, full = build_parser(train_options=False), build_parser()
+    assert light.format_help() == full.format_help()
+    assert list(_subcommands(light)) == list(_subcommands(full))
+    assert full.parse_args(["train", "--out", "x", "--num-envs", "4"]).num_envs == 4
+
+
+_LIGHT = """
+import sys
+from cpp_mujoco.cli import main
+for argv in (["--version"], ["--help"], ["evaluate", "--help"], ["benchmark", "--help"]):
+    try:
+        main(argv)
+    except SystemExit:
+        pass
+heavy = ("torch", "mujoco", "matplotlib", "cpp_mujoco.agent", "cpp_mujoco.evaluate")
+print("imported:", *sorted(m for m in heavy if m in sys.modules))
+"""
+
+
+def test_help_and_version_import_no_heavy_module():
+    # before: building the parser imported cpp_mujoco.agent and torch (4 s for --version)
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _LIGHT], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == "imported:", out.stdout[-500:]
+
+
+def test_every_benchmark_section_is_a_module_with_run():
+    import importlib
+    import inspect
+
+    from cpp_mujoco.benchmark import SECTIONS
+
+    assert list(SECTIONS) == ["grid", "physics", "training", "review"]
+    for name, module in SECTIONS.items():
+        run = importlib.import_module(module).run
+        required = [p for p in inspect.signature(run).parameters.values() if p.default is p.empty]
+        assert not required, (name, required)
+
+
+def test_unknown_benchmark_section_is_one_line_before_anything_runs(tmp_path, capsys):
+    code = main(["benchmark", "--only", "grid", "gpu", "--json", str(tmp_path / "b.json")])
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "'gpu'" in err and "known: grid, physics, training, review" in err
+    assert not (tmp_path / "b.json").exists()

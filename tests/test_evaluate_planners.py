@@ -79,6 +79,11 @@ def test_result_json_and_unknown_names(tmp_path, greedy_results):
     greedy_results["C"].to_json(path)
     data = json.loads(path.read_text())
     assert data["landing_ratio"] == 1.0 and len(data["per_budget"]) == 51
+    assert data["map"] == "C" and data["map_bundled"] is True
+    assert data["map_digest"] == load_map("C").digest
+    assert data["conditions"]["budgets"] == {"min": 25, "max": 75, "step": 1}
+    assert data["conditions"]["episodes"] == 612 and data["conditions"]["backend"] == "grid"
+    assert greedy_results["C"].grid_map.digest == load_map("C").digest
     with pytest.raises(ValueError, match="unknown planner"):
         make_planner("astar")
     with pytest.raises(ValueError, match="unknown backend"):

@@ -1,4 +1,4 @@
-"""The grid MDP's rules (DESIGN §3), cell by cell, through the public gymnasium env."""
+"""The paper's grid MDP rules, cell by cell, through the public gymnasium env."""
 
 import gymnasium as gym
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import cpp_mujoco  # noqa: F401  (registers the envs)
-from cpp_mujoco.grid.safety import EAST, LAND, NORTH, SOUTH, WEST
+from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.maps import GridMap
 
 R_COV, R_MOV, R_SC, R_CRASH = 0.4, -0.2, -1.0, -150.0

@@ -1,5 +1,8 @@
 """Map loading: the bundled maps and every rule a bad map file can break."""
 
+import struct
+import zlib
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -100,3 +103,45 @@ def test_layers_are_read_only():
     m = load_map("A")
     with pytest.raises(ValueError):
         m.target[0, 0] = True
+
+
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def _png_header_only(width: int, height: int) -> bytes:
+    """A PNG whose IHDR claims width×height RGB pixels, with no pixel data behind it."""
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", ihdr) + _chunk(b"IEND", b"")
+
+
+def test_decompression_bomb_png_is_a_map_error_naming_the_limit(tmp_path):
+    bomb = tmp_path / "bomb.png"
+    bomb.write_bytes(_png_header_only(100_000, 100_000))
+    with pytest.raises(Image.DecompressionBombError):  # what PIL alone does with it
+        Image.open(bomb)
+    with pytest.raises(MapError, match=r"100000x100000 .*limit of 1\.\.256 cells per side"):
+        load_map(bomb)
+
+
+def test_any_pil_failure_is_a_map_error(tmp_path):
+    # a GIF (no PNG header to read first) whose size trips PIL's own bomb check
+    gif = tmp_path / "bomb.png"
+    screen = struct.pack("<HHBBB", 65535, 65535, 0, 0, 0)
+    frame = b"," + struct.pack("<HHHHB", 0, 0, 65535, 65535, 0) + b"\x08\x00;"
+    gif.write_bytes(b"GIF89a" + screen + frame)
+    with pytest.raises(MapError, match="too large"):
+        load_map(gif)
+
+
+def test_maps_over_the_size_limit_are_refused_before_allocating(tmp_path):
+    with pytest.raises(MapError, match=r"257x3 cells exceeds the map size limit of 1\.\.256"):
+        GridMap(landing=np.ones((257, 3)), target=np.ones((257, 3)), nfz=np.zeros((257, 3)))
+    huge = np.broadcast_to(np.zeros((), dtype=bool), (100_000, 100_000))  # a view: no memory
+    with pytest.raises(MapError, match="limit of 1..256"):
+        GridMap(landing=huge, target=huge, nfz=huge)
+    with pytest.raises(MapError, match="limit of 1..256"):
+        load_map(_png(tmp_path / "tall.png", np.zeros((1, 257, 3))))
+    rgb = np.zeros((256, 256, 3))
+    rgb[0, 0], rgb[5, 5] = (0, 0, 255), (0, 255, 0)
+    assert load_map(_png(tmp_path / "max.png", rgb)).shape == (256, 256)

@@ -11,7 +11,7 @@ from cpp_mujoco.cli import main
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.mission import fly_mission
 from cpp_mujoco.planners import SafeGreedyPlanner
-from tests.test_review import rrd_entities
+from tests.test_review import rrd_entities, rrd_print
 
 SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
 
@@ -46,6 +46,10 @@ def test_grid_backend_recording(tmp_path):
                           rrd=tmp_path / "g.rrd")  # fmt: skip
     assert outcome.landed and outcome.coverage_ratio == 1.0
     assert "LineStrips3D" in rrd_entities(tmp_path / "g.rrd")["/world/footprint"]
+    # the recording says what was flown: the map's identity, the policy, the conditions
+    properties = rrd_print(tmp_path / "g.rrd")
+    assert f"[{SMALL.digest}]" in properties and "[safe-greedy]" in properties
+    assert outcome.map == "small" and outcome.policy == "safe-greedy"
 
 
 class _Interrupting:
@@ -59,17 +63,22 @@ class _Interrupting:
         return self.inner.act(obs)
 
 
-def test_an_interrupted_mission_leaves_readable_files(tmp_path):
+def test_an_interrupted_mission_leaves_readable_files_that_say_so(tmp_path):
     rrd, onboard = tmp_path / "m.rrd", tmp_path / "onboard.mp4"
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(KeyboardInterrupt) as info:
         fly_mission(_Interrupting(1), SMALL, budget=8, start=(0, 1), rrd=rrd, onboard_video=onboard)
+    partial = tmp_path / "onboard.partial.mp4"
+    assert info.value.files_finalised == {"rrd": str(rrd), "onboard_video": str(partial)}
     assert "Transform3D" in rrd_entities(rrd)["/world/uav"]
-    assert iio.imread(onboard).shape[0] > 5
+    assert "interrupted" in rrd_print(rrd)  # the recording's last event says it was cut
+    assert not onboard.exists()  # a cut video never passes for a complete one
+    assert iio.imread(partial).shape[0] > 5
 
 
 def test_fly_bad_input_messages(tmp_path, small_map, capsys):
     assert main(["fly", "--map", "A", "--agent", "nonexistent"]) == 2
-    assert "no bundled agent" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "'nonexistent'" in err and "bundled: A, B, C" in err
     assert main(["fly", "--map", str(small_map), "--planner", "safe-greedy", "--start", "x"]) == 2
     assert "ROW,COL" in capsys.readouterr().err
     blocker = tmp_path / "file"

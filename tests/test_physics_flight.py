@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import cpp_mujoco  # noqa: F401 - registers the envs
+from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.mdp import GridMDP
-from cpp_mujoco.grid.safety import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.arena import GridGeometry, build_arena, compile_arena
 from cpp_mujoco.physics.calibration import calibration, unit_energy

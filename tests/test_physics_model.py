@@ -5,15 +5,16 @@ import math
 import mujoco
 import numpy as np
 import pytest
-from dm_control import mjcf
 
 from cpp_mujoco.maps import GridMap, load_map
-from cpp_mujoco.physics.arena import GridGeometry, build_arena, camera_fovy, compile_arena
+
+# dm_control's mjcf as the arena imports it (without dm_control's headless GLFW warning)
+from cpp_mujoco.physics.arena import GridGeometry, build_arena, camera_fovy, compile_arena, mjcf
 from cpp_mujoco.physics.camera import cells_in_footprint, corner_rays, footprint, inside_polygon
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.energy import IntervalEnergy, PowerModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
-from cpp_mujoco.physics.wind import Wind
+from cpp_mujoco.physics.wind import QuadraticDrag, Wind
 
 CONFIG = PhysicsConfig()
 
@@ -148,11 +149,11 @@ def test_hover_power_is_momentum_theory(params):
 
 
 def test_wind_direction_and_gust_statistics():
-    north = Wind(PhysicsConfig(wind_speed=5.0, wind_direction=0.0), 0.02, 0.1)
+    north = Wind(PhysicsConfig(wind_speed=5.0, wind_direction=0.0), 0.02)
     assert north.steady == pytest.approx((0.0, -5.0, 0.0))  # from the north, blowing south
-    fx, fy, _ = north.drag((0.0, 2.0, 0.0), north.steady)  # flying north into it
+    fx, fy, _ = QuadraticDrag(1.225, 0.1).force((0.0, 2.0, 0.0), north.steady)  # flying into it
     assert fx == pytest.approx(0.0) and fy < 0.0
-    gusty = Wind(PhysicsConfig(gust_std=2.0, gust_tau=1.0), 0.02, 0.1)
+    gusty = Wind(PhysicsConfig(gust_std=2.0, gust_tau=1.0), 0.02)
     gusty.reset(np.random.default_rng(0))
     samples = np.array([gusty.velocity()[:2] for _ in range(50_000)])
     assert samples.std(axis=0) == pytest.approx([2.0, 2.0], rel=0.15)

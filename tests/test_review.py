@@ -5,6 +5,7 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -30,25 +31,47 @@ def rrd_entities(path) -> dict[str, set[str]]:
     return entities
 
 
-def test_recording_verifies_and_holds_images_lines_scalars_transforms(tmp_path):
-    grid_map = load_map("B")
-    path = tmp_path / "mission.rrd"
-    rec = MissionRecorder(path, grid_map)
+def rrd_print(path, verbosity: str = "-vvv") -> str:
+    """Everything ``rerun rrd print`` shows (data included at -vvv)."""
+    return subprocess.run(
+        [RERUN, "rrd", "print", verbosity, str(path)], capture_output=True, text=True, check=True
+    ).stdout
+
+
+def rrd_stores(path) -> set[tuple[str, str]]:
+    """(application id, recording id) of every recording store in the file."""
+    return set(re.findall(r'Recording,\s*"([^"]+)",\s*"([^"]+)"', rrd_print(path, "-v")))
+
+
+def rrd_num_chunks(path) -> int:
+    out = subprocess.run([RERUN, "rrd", "stats", str(path)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    return int(re.search(r"num_chunks = ([\d ]+)", out.stdout).group(1).replace(" ", ""))
+
+
+def _log_mission(rec: MissionRecorder, steps: int) -> None:
     footprint = np.array([[-6.0, -6.0], [6.0, -6.0], [6.0, 6.0], [-6.0, 6.0]])
-    for step in range(3):
+    for step in range(steps):
         t = 3.0 * step
         rec.log_pose(t, [step, 0.0, 6.0], (1, 0, 0, 0), footprint + step)
-        rec.log_camera(t, np.full((24, 32, 3), 40 * step, dtype=np.uint8))
+        rec.log_camera(t, np.full((24, 32, 3), 40 * (step % 6), dtype=np.uint8))
         rec.log_pose(t + 1.5, [step + 0.5, 0.0, 6.0])
         info = {
             "budget": 30 - step,
             "coverage_ratio": 0.1 * step,
             "rejected": False,
             "position": (14, 3),
-            "landed": step == 2,
+            "landed": step == steps - 1,
             "energy_used_j": 100.0 * step,
         }
         rec.log_step(t + 3.0, 1, -0.2, info, np.zeros(256, bool), 14 * 16 + 3)
+
+
+def test_recording_verifies_and_holds_images_lines_scalars_transforms(tmp_path):
+    grid_map = load_map("B")
+    path = tmp_path / "mission.rrd"
+    rec = MissionRecorder(path, grid_map)
+    _log_mission(rec, 3)
     rec.close()
     entities = rrd_entities(path)
     assert "Transform3D" in entities["/world/uav"]
@@ -60,6 +83,29 @@ def test_recording_verifies_and_holds_images_lines_scalars_transforms(tmp_path):
     for metric in ("energy_j", "budget", "reward", "return", "coverage_ratio"):
         assert "Scalars" in entities[f"/metrics/{metric}"]
     assert any(e.startswith("/view") or e == "/viewport" for e in entities)  # the blueprint
+
+
+def test_each_recording_has_its_own_id_and_a_readable_application_id(tmp_path):
+    # before: every recording had the recording id "mission", so two opened together merged
+    ids = set()
+    for name in ("one.rrd", "two.rrd"):
+        rec = MissionRecorder(tmp_path / name, load_map("C"))
+        _log_mission(rec, 1)
+        rec.close()
+        stores = rrd_stores(tmp_path / name)
+        assert {app for app, _ in stores} == {"cpp_mujoco"}
+        ids |= {rid for _, rid in stores}
+    assert len(ids) == 2 and "mission" not in ids
+
+
+def test_a_mission_is_written_in_few_chunks(tmp_path):
+    # before: a flush after every step gave ~7 chunks per step (1,006 for one mission)
+    path = tmp_path / "long.rrd"
+    rec = MissionRecorder(path, load_map("B"))
+    _log_mission(rec, 60)
+    rec.close()
+    chunks = rrd_num_chunks(path)
+    assert chunks <= 45, chunks  # blueprint and static scene ~25, then one chunk per entity
 
 
 def test_unwritable_recording_path_is_a_clear_error(tmp_path):
@@ -108,11 +154,12 @@ def test_mp4_decodes(tmp_path):
     import imageio.v3 as iio
 
     path = tmp_path / "v.mp4"
-    with VideoWriter(path, fps=10) as video:
-        for i in range(12):
-            frame = np.zeros((240, 320, 3), dtype=np.uint8)
-            frame[:, : 20 * (i + 1)] = (200, 50, 50)
-            video.write(frame)
+    video = VideoWriter(path, fps=10)
+    for i in range(12):
+        frame = np.zeros((240, 320, 3), dtype=np.uint8)
+        frame[:, : 20 * (i + 1)] = (200, 50, 50)
+        video.write(frame)
+    assert video.close() == path
     frames = iio.imread(path)
     assert frames.shape[0] == 12 and frames.shape[1:] == (240, 320, 3)
     assert frames[-1].mean() > frames[0].mean()
@@ -121,3 +168,82 @@ def test_mp4_decodes(tmp_path):
 def test_unknown_gl_backend():
     with pytest.raises(RenderingError, match="unknown GL backend"):
         configure_gl("vulkan")
+
+
+def _frames(n: int):
+    for i in range(n):
+        frame = np.zeros((240, 320, 3), dtype=np.uint8)
+        frame[:, : 20 * (i % 16 + 1)] = (200, 50, 50)
+        yield frame
+
+
+def test_video_appears_under_its_name_only_when_complete(tmp_path):
+    path = tmp_path / "v.mp4"
+    video = VideoWriter(path, fps=10)
+    for frame in _frames(5):
+        video.write(frame)
+    assert not path.exists()  # being written to a hidden temporary file
+    assert video.close() == path
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v.mp4"]
+
+
+def test_interrupted_video_is_finalised_as_partial(tmp_path):
+    import imageio.v3 as iio
+
+    path = tmp_path / "v.mp4"
+    video = VideoWriter(path, fps=10)
+    for frame in _frames(6):
+        video.write(frame)
+    assert (
+        video.close(partial=True) == tmp_path / "v.partial.mp4"
+    )  # what an interrupted mission does
+    assert not path.exists()  # never passes for the complete video
+    assert iio.imread(tmp_path / "v.partial.mp4").shape[0] == 6  # but plays
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v.partial.mp4"]
+
+
+@pytest.mark.parametrize("disk_full", [False, True])
+def test_ffmpeg_failure_is_one_line_and_leaves_no_temporary_file(tmp_path, monkeypatch, disk_full):
+    from cpp_mujoco.io import WriteError
+
+    path = tmp_path / "v.mp4"
+    path.write_bytes(b"previous video")
+    video = VideoWriter(path, fps=10)
+    video.write(next(_frames(1)))
+    video._writer._write_gen.gi_frame.f_locals["p"].kill()  # ffmpeg dies, as on a full disk
+    if disk_full:
+        full = SimpleNamespace(f_bavail=0, f_bfree=0)  # what a full disk reports
+        monkeypatch.setattr(os, "statvfs", lambda _: full)
+    with pytest.raises(WriteError) as info:
+        for frame in _frames(200):  # the broken pipe shows within a few frames
+            video.write(frame)
+        video.close()
+    message = str(info.value)
+    assert "\n" not in message and str(path) in message
+    if disk_full:
+        assert "no space left on device" in message
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v.mp4"]
+    assert path.read_bytes() == b"previous video"  # the previous file is untouched
+
+
+def test_figure_on_a_full_disk_is_a_write_error_and_leaves_nothing(tmp_path, monkeypatch):
+    import errno
+
+    from matplotlib.figure import Figure
+
+    from cpp_mujoco.io import WriteError
+    from cpp_mujoco.review.plots import map_figure
+
+    path = tmp_path / "map.png"
+    path.write_bytes(b"previous figure")
+
+    def full_disk(self, fname, **kwargs):
+        Path(fname).write_bytes(b"\x89PNG half")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Figure, "savefig", full_disk)
+    with pytest.raises(WriteError, match="no space left on device"):
+        map_figure(load_map("C"), path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["map.png"]
+    assert path.read_bytes() == b"previous figure"

@@ -7,6 +7,7 @@ checkpoint. The result acts greedily: ``agent.act(obs) -> int`` for one observat
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from cpp_mujoco.agent.checkpoint import CheckpointError, load_checkpoint, networ
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import QNetwork
 from cpp_mujoco.agent.policy import GreedyAgent, MapSizeError
+from cpp_mujoco.io import resolve_named_file
 
 BUNDLED_DIR = Path(__file__).resolve().parent / "bundled"
 
@@ -24,25 +26,27 @@ def bundled_agents() -> list[str]:
 
 
 def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAgent:
-    """A bundled agent by map name (``"A"``, ``"B"``, ``"C"``), or an agent/training checkpoint."""
-    text = os.fspath(name_or_path)
-    bundled = BUNDLED_DIR / f"{text}.pt"
-    if not any(sep in text for sep in ("/", os.sep)) and not text.endswith(".pt"):
-        if not bundled.is_file():
-            raise CheckpointError(
-                f"no bundled agent {text!r}; bundled: {', '.join(bundled_agents()) or 'none'}"
-            )
-        path = bundled
-    else:
-        path = Path(text)
-    obj = load_checkpoint(path)
-    net = network_from_checkpoint(obj, str(path))
+    """A bundled agent by map name (``"A"``, ``"B"``, ``"C"``), or an agent/training checkpoint.
+
+    The agent's ``name`` says which: ``ddqn-A`` is the bundled agent, ``ddqn-A (file)`` a user's
+    ``A.pt``; ``metadata`` carries ``source`` (the file), ``bundled`` and the file's ``digest``.
+    """
+    where = resolve_named_file(
+        name_or_path, bundled=BUNDLED_DIR, suffix=".pt", kind="agent", error=CheckpointError
+    )
+    obj = load_checkpoint(where.path)
+    net = network_from_checkpoint(obj, str(where.path))
     return GreedyAgent(
         net,
         obj["budget_scale"],
         device,
-        name=f"ddqn-{obj.get('map', path.stem)}",
-        metadata={k: obj.get(k) for k in ("map", "config", "metrics")},
+        name=f"ddqn-{where.name}" if where.bundled else f"ddqn-{where.name} (file)",
+        metadata={
+            **{k: obj.get(k) for k in ("map", "config", "metrics")},
+            "source": str(where.path),
+            "bundled": where.bundled,
+            "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
+        },
     )
 
 

@@ -113,6 +113,11 @@ def update_ms(compile_network: bool, updates: int = 40, batch_size: int = 128) -
     }
 
 
+def run() -> dict:
+    """The ``training`` section as ``cpp-mujoco benchmark`` runs it."""
+    return benchmark_training(updates=100)
+
+
 if __name__ == "__main__":
     import json
     import sys

@@ -8,21 +8,28 @@ Two kinds share one layout:
   continue a run exactly — target network, optimiser, replay memory, environment state, RNG
   states, counters and the evaluation history.
 
-Anything else (another file type, a truncated file, a different map size) raises
-:class:`CheckpointError` with a message that says what is wrong.
+Anything else (a folder, another file type, a truncated file, a different map size, NaN/inf
+weights, a non-positive budget scale) raises :class:`CheckpointError` with a message that names the
+file and says what is wrong. Writes go through :mod:`cpp_mujoco.io` (atomic; a full disk is a
+one-line ``WriteError`` and the previous file is untouched).
 """
 
 from __future__ import annotations
 
 import io
+import math
 import os
 import pickle
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import torch
 
+from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import QNetwork
+from cpp_mujoco.io import atomic_write_bytes
+from cpp_mujoco.maps import MAX_SIDE, GridMap, load_map
 
 FORMAT_VERSION = 1
 AGENT_KIND = "cpp_mujoco.agent"
@@ -35,21 +42,28 @@ class CheckpointError(ValueError):
 
 
 def atomic_save(obj: dict, path: str | os.PathLike) -> Path:
-    """``torch.save`` to ``path.tmp``, fsync, ``os.replace``: a crash never leaves half a file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        torch.save(obj, f)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    return path
+    """Serialise in memory, then write atomically (:mod:`cpp_mujoco.io`): a crash or a full disk
+    never leaves half a file or a temporary one, and the previous file stays as it was.
+
+    ``torch.save`` to a file reports a failed write as "unexpected pos …"; writing the bytes
+    ourselves gives the operating system's reason (no space left, file too large).
+    """
+    buffer = io.BytesIO()
+    torch.save(obj, buffer)
+    return atomic_write_bytes(path, buffer.getbuffer())
 
 
-def load_checkpoint(path: str | os.PathLike, *, map_shape: tuple[int, int] | None = None) -> dict:
-    """Read and validate a checkpoint; ``map_shape`` (H, W), if given, must match the network's."""
-    path = Path(path)
+def _detail(exc: BaseException) -> str:
+    """torch's first line, unless it advises disabling weights_only (never safe here)."""
+    text = (str(exc).strip().splitlines() or [""])[0][:200]
+    if "weights_only" in text or not text:
+        return type(exc).__name__
+    return f"{type(exc).__name__}: {text}"
+
+
+def _read(path: Path) -> dict:
+    if path.is_dir():
+        raise CheckpointError(f"{path} is a folder, not a checkpoint file")
     if not path.is_file():
         raise CheckpointError(f"checkpoint {path} does not exist")
     data = path.read_bytes()
@@ -67,16 +81,33 @@ def load_checkpoint(path: str | os.PathLike, *, map_shape: tuple[int, int] | Non
         if data[:2] != b"PK":
             reason = "not a torch checkpoint"
         elif isinstance(exc, pickle.UnpicklingError):
-            reason = "holds objects a weights-only load refuses (not a cpp_mujoco checkpoint)"
+            reason = "holds objects other than tensors and plain data (not a cpp_mujoco checkpoint)"
         else:
-            reason = "truncated or corrupt"
-        raise CheckpointError(
-            f"cannot read checkpoint {path}: {reason} ({type(exc).__name__}: {str(exc)[:200]})"
-        ) from None
+            reason = f"truncated or corrupt ({_detail(exc)})"
+        raise CheckpointError(f"cannot read checkpoint {path}: {reason}") from None
     if not isinstance(obj, dict) or obj.get("kind") not in KINDS:
         raise CheckpointError(
             f"{path} is a torch file but not a cpp_mujoco checkpoint (no 'kind' in {KINDS})"
         )
+    return obj
+
+
+def _check_weights(path: Path, what: str, weights: object) -> None:
+    """Every tensor present and finite: NaN weights would act (argmax of NaN) without a sound."""
+    if not isinstance(weights, dict) or not weights:
+        raise CheckpointError(f"{path}: {what} holds no weights")
+    for name, value in weights.items():
+        if not isinstance(value, torch.Tensor):
+            raise CheckpointError(f"{path}: {what} entry {name!r} is not a tensor")
+        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
+            bad = int((~torch.isfinite(value)).sum())
+            raise CheckpointError(
+                f"{path}: {what} weight {name!r} has {bad} NaN/inf value(s) of {value.numel()} "
+                "(the run diverged or the file is damaged)"
+            )
+
+
+def _check(path: Path, obj: dict) -> None:
     version = obj.get("format_version")
     if version != FORMAT_VERSION:
         raise CheckpointError(
@@ -85,9 +116,37 @@ def load_checkpoint(path: str | os.PathLike, *, map_shape: tuple[int, int] | Non
     for key in ("network", "network_kwargs", "budget_scale"):
         if key not in obj:
             raise CheckpointError(f"{path} lacks {key!r}; the file is incomplete")
+    kw = obj["network_kwargs"]
+    if (
+        not isinstance(kw, dict)
+        or set(kw) != {"height", "width"}
+        or not all(type(v) is int and 1 <= v <= MAX_SIDE for v in kw.values())
+    ):
+        raise CheckpointError(
+            f"{path}: network_kwargs {kw!r} are not a map size (height and width in 1..{MAX_SIDE})"
+        )
+    scale = obj["budget_scale"]
+    if type(scale) not in (int, float) or not math.isfinite(scale) or scale <= 0:
+        raise CheckpointError(f"{path}: budget_scale {scale!r} is not a positive number")
+    _check_weights(path, "network", obj["network"])
+    if obj["kind"] == TRAIN_KIND:
+        _check_weights(path, "target network", obj.get("target"))
+        if not isinstance(obj.get("config"), dict):
+            raise CheckpointError(f"{path}: training checkpoint without its config")
+
+
+def load_checkpoint(path: str | os.PathLike, *, map_shape: tuple[int, int] | None = None) -> dict:
+    """Read and validate a checkpoint; ``map_shape`` (H, W), if given, must match the network's.
+
+    Raises :class:`CheckpointError` naming the file and what is wrong: not a file, not ours,
+    truncated, another format version, non-finite weights, a bad budget scale or map size.
+    """
+    path = Path(path)
+    obj = _read(path)
+    _check(path, obj)
     if map_shape is not None:
         kw = obj["network_kwargs"]
-        got = (int(kw["height"]), int(kw["width"]))
+        got = (kw["height"], kw["width"])
         if got != tuple(map_shape):
             raise CheckpointError(
                 f"{path} holds a network for {got[0]}x{got[1]} maps (map {obj.get('map')!r}), "
@@ -114,8 +173,13 @@ def agent_payload(
     map_name: str,
     config: dict,
     metrics: dict | None = None,
+    map_digest: str = "",
 ) -> dict:
-    """The agent part of a checkpoint (everything ``load_agent`` needs; fp32 weights only)."""
+    """The agent part of a checkpoint (everything ``load_agent`` needs; fp32 weights only).
+
+    ``map_digest`` (:attr:`GridMap.digest`) fingerprints the training map's cells, so a resume
+    on an edited map file of the same name is refused instead of silently continuing.
+    """
     return {
         "kind": AGENT_KIND,
         "format_version": FORMAT_VERSION,
@@ -125,6 +189,116 @@ def agent_payload(
         "network_kwargs": {"height": network.height, "width": network.width},
         "budget_scale": float(budget_scale),
         "map": map_name,
+        "map_digest": map_digest,
         "config": dict(config),
         "metrics": dict(metrics or {}),
     }
+
+
+# ----------------------------------------------------------------------------- training state
+# settings a resumed run may change: they schedule the run, not what it learns
+RESUMABLE_CHANGES = frozenset(
+    {"total_updates", "max_minutes", "eval_every", "eval_budget_step", "final_eval",
+     "checkpoint_every", "checkpoint_minutes", "device", "threads"}
+)  # fmt: skip
+
+
+def _env_state(venv) -> dict:
+    """The vector env's own ``state_dict``, its arrays as tensors (``weights_only`` loads)."""
+    return {
+        k: torch.from_numpy(v) if isinstance(v, np.ndarray) else v
+        for k, v in venv.state_dict().items()
+    }
+
+
+def _load_env_state(venv, state: dict) -> None:
+    try:
+        venv.load_state_dict(
+            {k: v.numpy() if isinstance(v, torch.Tensor) else v for k, v in state.items()}
+        )
+    except ValueError as exc:
+        raise CheckpointError(
+            f"the checkpoint's environment state does not fit this run ({exc}); "
+            "it was written by another version"
+        ) from None
+
+
+def training_state(trainer) -> dict:
+    """Everything a :class:`~cpp_mujoco.agent.train.Trainer` needs to continue exactly."""
+    t = trainer
+    return {
+        **t.agent_state(),
+        "kind": TRAIN_KIND,
+        "target": t.target.state_dict(),
+        "optimizer": t.optimizer.state_dict(),
+        "replay": t.replay.state_dict(),
+        "env": _env_state(t.env.unwrapped),
+        "obs": {k: torch.from_numpy(np.array(v)) for k, v in t.obs.items()},
+        "ep_return": torch.from_numpy(t.ep_return.copy()),
+        "rng": t.rng.bit_generator.state,
+        "torch_gen": t.torch_gen.get_state(),
+        "torch_rng": torch.get_rng_state(),
+        "counters": {
+            "updates": t.updates,
+            "env_steps": t.env_steps,
+            "episodes": t.episodes,
+            "wall_s": t.wall_s,
+            "update_credit": t.update_credit,
+        },
+        "recent": [list(map(float, r)) for r in t.recent],
+        "history": t.history,
+        "best": list(t.best) if t.best else None,
+    }
+
+
+def restore_training_state(trainer, s: dict) -> None:
+    """The inverse of :func:`training_state`."""
+    if s.get("kind") != TRAIN_KIND:
+        raise CheckpointError(
+            "an agent file cannot be resumed; pass a training checkpoint (checkpoint.pt)"
+        )
+    t = trainer
+    t.online.load_state_dict(s["network"])
+    t.target.load_state_dict(s["target"])
+    t.optimizer.load_state_dict(s["optimizer"])
+    t.replay.load_state_dict(s["replay"])
+    venv = t.env.unwrapped
+    _load_env_state(venv, s["env"])
+    t.obs = {k: v.numpy().copy() for k, v in s["obs"].items()}
+    t.obs["map"] = venv.mdp.observation()["map"]
+    t.ep_return = s["ep_return"].numpy().copy()
+    t.rng.bit_generator.state = s["rng"]
+    t.torch_gen.set_state(s["torch_gen"])
+    torch.set_rng_state(s["torch_rng"])
+    for k, v in s["counters"].items():
+        setattr(t, k, v)
+    t.recent.extend(tuple(r) for r in s["recent"])
+    t.history = list(s["history"])
+    t.best = tuple(s["best"]) if s["best"] else None
+
+
+def check_resumable(path: Path, state: dict, config: TrainConfig, grid_map: GridMap) -> None:
+    """A resume must continue the same run: the same map cells and the same learning settings
+    (only :data:`RESUMABLE_CHANGES` may differ), else :class:`CheckpointError` naming them."""
+    try:
+        stored = TrainConfig.from_dict(state["config"])
+    except (TypeError, ValueError) as exc:
+        raise CheckpointError(f"{path}: its stored config is invalid ({exc})") from None
+    digest = state.get("map_digest")
+    if (digest and digest != grid_map.digest) or (
+        not digest and stored.map != config.map and load_map(stored.map).name != grid_map.name
+    ):
+        raise CheckpointError(
+            f"{path} was trained on map {state.get('map')!r} ({stored.map}), "
+            f"not on {config.map!r} (map {grid_map.label}, cells {grid_map.digest})"
+        )
+    given, old = config.to_dict(), stored.to_dict()
+    changed = [
+        f"{k} {old[k]!r} (stored) vs {given[k]!r} (given)"
+        for k in given
+        if k != "map" and k not in RESUMABLE_CHANGES and given[k] != old[k]
+    ]
+    if changed:
+        raise CheckpointError(
+            f"{path}: resume with the run's own settings; these differ: {'; '.join(changed)}"
+        )

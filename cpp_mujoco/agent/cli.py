@@ -1,93 +1,170 @@
-"""``cpp-mujoco train``: the argparse sub-parser (the lead wires ``add_train_parser`` into the CLI).
+"""``cpp-mujoco train``: its sub-parser, registered like every subcommand (:func:`add_parser`
+sets ``func``; :mod:`cpp_mujoco.cli` assembles the command line).
 
 Every :class:`TrainConfig` field is an option (``--learning-rate``, ``--num-envs`` …), so a run is
-reproducible from its command line alone.
+reproducible from its command line alone. Exit codes: 0 done, 2 bad input (one line on stderr,
+nothing written), 130/143 stopped by SIGINT/SIGTERM after saving a resumable checkpoint.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import re
+import shlex
 import sys
 
 from cpp_mujoco.agent.config import TrainConfig
 
+# one sentence per TrainConfig field (tests/test_agent_train.py checks that none is missing)
 _HELP = {
-    "map": "bundled map name (A, B, C) or PNG path",
-    "seed": "random seed (network init, envs, replay sampling, exploration)",
-    "device": "torch device: cpu (default) or cuda",
+    "map": "bundled map name (A, B, C) or the path of a PNG map",
+    "seed": "random seed for network init, environments, replay sampling and exploration",
+    "min_budget": "smallest movement budget drawn for a training episode",
+    "max_budget": "largest movement budget drawn for a training episode",
+    "gamma": "discount factor of future rewards",
+    "tau": "soft target-network update rate per gradient update; the paper's is 0.005",
+    "buffer_size": "replay memory size in transitions",
+    "batch_size": "minibatch size of each gradient update",
+    "beta": "soft-max exploration temperature: π(a|s) ∝ exp(Q(s,a)/β)",
+    "learning_rate": "Adam learning rate (peak, after warm-up)",
+    "lr_warmup_updates": "updates of linear learning-rate warm-up from 0 (0 = none)",
+    "lr_final": "learning rate at the end of the cosine decay, as a fraction (1 = constant)",
+    "adam_eps": "Adam's epsilon, added to the gradient scale for numerical stability",
+    "loss": "TD loss: mse (the paper) or huber (robust to the −150 crash reward)",
+    "max_grad_norm": "clip the gradient norm to this (0 = no clipping)",
+    "num_envs": "environments stepped together, one batched forward pass per step",
+    "n_step": "n-step return targets (1 = the paper)",
+    "updates_per_step": "gradient updates per vector step of num-envs environment steps",
+    "guide": "reference planner that drives the guided environments",
+    "guide_fraction": "fraction of environments the guide drives at the start (0 = the paper)",
+    "guide_epsilon": "probability that a guided environment takes the agent's own action",
+    "guide_updates": "updates over which guidance decays linearly to none",
+    "demo_planner": "planner that flies the demonstrations (every landing cell × budget)",
+    "demo_fraction": "fraction of each minibatch drawn from demonstrations (0 = the paper)",
+    "demo_margin": "large-margin loss margin on demonstrations, in reward units",
+    "demo_weight": "weight of the large-margin loss",
+    "learning_starts": "environment steps collected before the first update",
     "total_updates": "training length in gradient updates",
     "max_minutes": "stop after this many minutes of training (0 = no limit)",
-    "num_envs": "environments collected in parallel",
-    "n_step": "n-step return targets (1 = the paper)",
-    "updates_per_step": "gradient updates per vector step",
-    "learning_rate": "Adam learning rate",
-    "loss": "mse (paper) or huber",
-    "threads": "torch CPU threads (0 = all cores)",
+    "eval_every": "greedy evaluation (logged, plotted, best.pt) every so many updates",
+    "eval_budget_step": "evaluate on every n-th budget (1 = the full protocol)",
+    "final_eval": "run the full protocol on the final agent and write final_eval.json",
+    "checkpoint_every": "save a resumable checkpoint.pt every so many updates",
+    "checkpoint_minutes": "also save one every so many minutes of wall time (0 = off)",
+    "budget_scale": "network input = budget / this (0 = max-budget)",
+    "device": "torch device: cpu or cuda",
+    "threads": "torch CPU threads (0 = pick the faster of 1 and all cores while training)",
 }
 
 
-def add_train_parser(subparsers) -> argparse.ArgumentParser:
-    """Add the ``train`` sub-command to an ``argparse`` sub-parsers object and return it."""
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``train`` sub-command to an ``argparse`` sub-parsers object and return it.
+
+    ``own_signals``: training turns SIGINT/SIGTERM into a saved checkpoint itself, so the
+    command line leaves its signals alone."""
     p = subparsers.add_parser(
         "train",
         help="train the DDQN agent on a map",
         description="Train the paper's DDQN agent on the grid MDP (defaults: the project's fast CPU"
-        " schedule; --paper for the paper's).",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        " schedule; --paper for the paper's). SIGINT/SIGTERM save a resumable checkpoint.",
     )
     p.add_argument(
         "--out",
         required=True,
         help="run folder: checkpoint.pt, agent.pt, best.pt, log.csv, training.png",
     )
-    p.add_argument(
+    folder = p.add_mutually_exclusive_group()
+    folder.add_argument(
         "--resume", action="store_true", help="continue the run in --out from its checkpoint.pt"
+    )
+    folder.add_argument(
+        "--overwrite", action="store_true", help="replace the run in a non-empty --out"
     )
     p.add_argument(
         "--paper",
         action="store_true",
         help="start from the paper's schedule (1 env, 1-step, MSE, 500k updates)",
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (there is none anyway when stderr is not a terminal)",
+    )
     defaults = TrainConfig()
     for f in dataclasses.fields(TrainConfig):
-        flag = "--" + f.name.replace("_", "-")
-        kind = type(getattr(defaults, f.name))
+        default = getattr(defaults, f.name)
+        text = f"{_HELP[f.name]} (default: {default})"
+        kind = type(default)
         if kind is bool:
-            p.add_argument(flag, dest=f.name, action=argparse.BooleanOptionalAction, default=None)
-            continue
-        p.add_argument(
-            flag,
-            dest=f.name,
-            type=kind,
-            default=None,
-            help=_HELP.get(f.name, f.name.replace("_", " "))
-            + f" (default {getattr(defaults, f.name)})",
-        )
-    p.set_defaults(handler=run_train)
+            action = argparse.BooleanOptionalAction
+            p.add_argument(_flag(f.name), dest=f.name, action=action, default=None, help=text)
+        else:
+            p.add_argument(_flag(f.name), dest=f.name, type=kind, default=None, help=text)
+    p.set_defaults(func=run_train, own_signals=True)
     return p
 
 
-def config_from_args(args: argparse.Namespace) -> TrainConfig:
-    given = {
+add_train_parser = add_parser  # the earlier name
+
+
+def _given(args: argparse.Namespace) -> dict:
+    return {
         f.name: getattr(args, f.name)
         for f in dataclasses.fields(TrainConfig)
         if getattr(args, f.name, None) is not None
     }
-    return TrainConfig.paper(**given) if getattr(args, "paper", False) else TrainConfig(**given)
+
+
+def config_from_args(args: argparse.Namespace) -> TrainConfig:
+    """The config the options describe; a bad value is a ``ValueError`` naming its option."""
+    given = _given(args)
+    try:
+        return TrainConfig.paper(**given) if getattr(args, "paper", False) else TrainConfig(**given)
+    except ValueError as exc:
+        names = "|".join(f.name for f in dataclasses.fields(TrainConfig))
+        text = re.sub(rf"\b({names})\b", lambda m: _flag(m[1]), str(exc))
+        raise ValueError(f"invalid option: {text}") from None
+
+
+def resume_command(args: argparse.Namespace) -> str:
+    """The command line that continues this run (same settings, plus ``--resume``)."""
+    parts = ["cpp-mujoco", "train", "--out", str(args.out), "--resume"]
+    parts += ["--paper"] if getattr(args, "paper", False) else []
+    for name, value in _given(args).items():
+        if isinstance(value, bool):
+            parts.append(_flag(name) if value else "--no-" + _flag(name)[2:])
+        else:
+            parts += [_flag(name), str(value)]
+    return shlex.join(parts)
 
 
 def run_train(args: argparse.Namespace) -> int:
     from cpp_mujoco.agent.checkpoint import CheckpointError
+    from cpp_mujoco.agent.run_folder import TrainingInterrupted
     from cpp_mujoco.agent.train import train
     from cpp_mujoco.maps import MapError
 
+    progress = not args.no_progress and sys.stderr.isatty()
     try:
         config = config_from_args(args)
-        trainer = train(config, args.out, resume=args.resume, progress=not args.no_progress)
-    except (CheckpointError, MapError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        overwrite = getattr(args, "overwrite", False)
+        trainer = train(
+            config, args.out, resume=args.resume, overwrite=overwrite, progress=progress
+        )
+    except TrainingInterrupted as stop:
+        print(
+            f"cpp-mujoco train: {stop} (agent: {stop.checkpoint.parent / 'agent.pt'})\n"
+            f"continue with: {resume_command(args)}",
+            file=sys.stderr,
+        )
+        return 128 + stop.signum
+    except (CheckpointError, MapError, ValueError, OSError) as exc:  # OSError: WriteError too
+        print(f"cpp-mujoco train: error: {exc}", file=sys.stderr)
         return 2
     last = trainer.history[-1] if trainer.history else {}
     if last:
@@ -96,14 +173,16 @@ def run_train(args: argparse.Namespace) -> int:
             f"landing {last['eval_landing']:.4f}, coverage {last['eval_coverage']:.4f}; "
             f"agent in {args.out}/agent.pt (best: best.pt)"
         )
+    else:
+        print(f"done: {trainer.updates} updates; agent in {args.out}/agent.pt")
     return 0
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="cpp-mujoco")
-    add_train_parser(parser.add_subparsers(dest="command", required=True))
+    add_parser(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
-    return args.handler(args)
+    return args.func(args)
 
 
 if __name__ == "__main__":

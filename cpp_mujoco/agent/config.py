@@ -63,6 +63,8 @@ class TrainConfig:
     # The final evaluation at the end of a run is always the full protocol, in final_eval.json.
     final_eval: bool = True  # full-protocol evaluation of the final agent → final_eval.json
     checkpoint_every: int = 2_000  # resumable checkpoint every so many updates
+    # … and every so many minutes of wall time (0 = off): a kill -9 loses at most this much
+    checkpoint_minutes: float = 5.0
     # network input = budget / budget_scale (0 means max_budget). 1 = the raw budget: measured on
     # map A, budget / 75 left the scalar too weak beside 4,096 conv features — the greedy policy
     # flew the same tour for every budget (0 landings below budget 37); raw, it adapts.
@@ -83,6 +85,17 @@ class TrainConfig:
             raise ValueError(f"demo_fraction must be in [0, 1), got {self.demo_fraction}")
         if not 0.0 < self.tau <= 1.0 or not 0.0 <= self.gamma <= 1.0 or self.beta <= 0:
             raise ValueError("need 0 < tau <= 1, 0 <= gamma <= 1, beta > 0")
+        for name in ("total_updates", "eval_every", "eval_budget_step", "checkpoint_every"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        for name in (
+            "max_minutes", "checkpoint_minutes", "budget_scale", "threads", "learning_starts",
+            "guide_fraction", "updates_per_step",
+        ):  # fmt: skip
+            if not 0 <= getattr(self, name) < float("inf"):  # NaN fails too
+                raise ValueError(f"{name} must be a finite number >= 0, got {getattr(self, name)}")
+        if not 0 < self.learning_rate < float("inf"):
+            raise ValueError(f"learning_rate must be > 0, got {self.learning_rate}")
 
     @property
     def input_budget_scale(self) -> float:

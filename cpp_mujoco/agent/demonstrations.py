@@ -1,10 +1,11 @@
 """Demonstrations from a reference planner, for DQfD's large-margin loss (Hester et al. 2018).
 
 The planner (default: the beam search) flies every episode of the training distribution — every
-landing cell × every budget min..max, the same set the §7 protocol evaluates — once, in one batched
-``GridMDP``. Its transitions are kept in a ``ReplayBuffer`` with one column per episode, so the
-n-step returns of demonstration samples are read exactly as for the agent's own experience. The
-grid is deterministic and so is the planner: the memory is rebuilt, not checkpointed.
+landing cell × every budget min..max, the set the protocol evaluates (``protocol_budgets``) —
+once, through the protocol's own batched loop (``evaluate``'s ``on_step`` hook). Its transitions
+are kept in a ``ReplayBuffer`` with one column per episode, so the n-step returns of
+demonstration samples are read exactly as for the agent's own experience. The grid is
+deterministic and so is the planner: the memory is rebuilt, not checkpointed.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpp_mujoco.agent.replay import ReplayBuffer
-from cpp_mujoco.evaluate import evaluate, protocol_episodes
+from cpp_mujoco.evaluate import evaluate, protocol_budgets, protocol_episodes
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import GridMap
 
@@ -40,7 +41,7 @@ def record_demonstrations(
     grid_map: GridMap, config: GridConfig, planner, n_step: int, gamma: float
 ) -> Demonstrations:
     """Fly ``planner`` over every (landing cell, budget) pair and keep every transition."""
-    budgets = range(config.min_budget, config.max_budget + 1)
+    budgets = protocol_budgets(config)
     k = len(protocol_episodes(grid_map, budgets)[0])
     max_rows = config.max_budget + n_step + 2  # an episode takes at most max_budget steps
     memory = ReplayBuffer(max_rows * k, k, grid_map.layers, n_step, gamma)

@@ -14,7 +14,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-NUM_ACTIONS = 5
+from cpp_mujoco.grid.actions import NUM_ACTIONS
+
 IN_CHANNELS = 5  # landing, target, nfz, coverage, position
 NFZ_CHANNEL = 2
 

@@ -6,6 +6,9 @@ import numpy as np
 import torch
 
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
+from cpp_mujoco.policy import as_batch
+
+FORWARD_CELLS = 2**20  # observations per forward pass × map cells: caps the conv activations
 
 
 class MapSizeError(ValueError):
@@ -43,14 +46,44 @@ class GreedyAgent:
                 f"agent {self.name!r} was trained on {self.map_shape[0]}x{self.map_shape[1]} maps, "
                 f"the observation is {shape[0]}x{shape[1]}"
             )
-        grid, budget = observation_to_tensors(obs, self.budget_scale, self.device)
-        return self.network(grid, budget).cpu().numpy()
+        n = int(np.shape(obs["coverage"])[0])
+        step = max(1, FORWARD_CELLS // (shape[0] * shape[1]))  # bounds the activations' memory
+        parts = []
+        for lo in range(0, max(n, 1), step):
+            part = {k: _rows(k, v, lo, lo + step) for k, v in obs.items()}
+            grid, budget = observation_to_tensors(part, self.budget_scale, self.device)
+            parts.append(self.network(grid, budget).cpu().numpy())
+        return np.concatenate(parts)
+
+    def reset(self, num_episodes: int, seed: int | None = None) -> None:
+        """Episode start: nothing to do, the greedy policy keeps no state between steps."""
 
     def act(self, obs: dict[str, np.ndarray]):
         single = np.ndim(obs["coverage"]) == 2
         if single:
-            obs = {k: np.asarray(v)[None] for k, v in obs.items()}
+            obs = as_batch(obs)
         actions = self.q_values(obs).argmax(axis=1)
         return int(actions[0]) if single else actions
 
     __call__ = act
+
+    def predict(
+        self,
+        observation: dict[str, np.ndarray],
+        state=None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, None]:
+        """Stable-Baselines3's interface (``evaluate_policy``, ``model.predict`` habits):
+        (actions, no recurrent state). The agent is greedy, so only ``deterministic=True``."""
+        if not deterministic:
+            raise ValueError(
+                f"agent {self.name!r} is greedy (argmax Q); deterministic=False is not available"
+            )
+        return np.asarray(self.act(observation)), None
+
+
+def _rows(key: str, value, lo: int, hi: int) -> np.ndarray:
+    """Rows lo:hi of a batched array; a map shared by the batch ((3, H, W)) stays whole."""
+    value = np.asarray(value)
+    return value if key == "map" and value.ndim == 3 else value[lo:hi]

@@ -2,15 +2,14 @@
 
 One iteration = one vector step of ``num_envs`` environments (actions from one batched forward pass,
 sampled from the soft-max policy) followed by ``updates_per_step`` gradient updates. Every
-``eval_every`` updates the greedy policy runs the full evaluation protocol (``cpp_mujoco.evaluate``:
-every landing cell × every budget), logged to ``log.csv`` and plotted to ``training.png`` (the
-paper's Fig. 4). ``checkpoint.pt`` (training state) and ``agent.pt`` (weights + metadata) are
-written atomically; ``best.pt`` keeps the best evaluated agent.
+``eval_every`` updates the greedy policy runs the full evaluation protocol, logged to ``log.csv``
+and ``training.png`` (the paper's Fig. 4). ``checkpoint.pt`` (resumable) and ``agent.pt`` are
+written atomically every ``checkpoint_every`` updates, every ``checkpoint_minutes`` and when
+SIGINT/SIGTERM stops the run; ``best.pt`` keeps the best evaluated agent.
 """
 
 from __future__ import annotations
 
-import csv
 import os
 import time
 from collections import deque
@@ -23,11 +22,12 @@ from tqdm import tqdm
 
 import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.agent.checkpoint import (
-    TRAIN_KIND,
-    CheckpointError,
     agent_payload,
     atomic_save,
+    check_resumable,
     load_checkpoint,
+    restore_training_state,
+    training_state,
 )
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.ddqn import ddqn_update, softmax_actions
@@ -35,63 +35,13 @@ from cpp_mujoco.agent.demonstrations import record_demonstrations
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.replay import ReplayBuffer
-from cpp_mujoco.evaluate import EvaluationResult, evaluate
+from cpp_mujoco.agent.run_folder import StopSignals, TrainingInterrupted, claim_run_folder
+from cpp_mujoco.agent.threads import ThreadTuner, set_threads
+from cpp_mujoco.evaluate import EvaluationResult, evaluate, protocol_budgets
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
-
-LOG_FIELDS = [
-    "updates", "env_steps", "episodes", "wall_s", "eval_landing", "eval_coverage", "eval_return",
-    "train_return", "train_landing", "train_coverage", "loss", "q", "updates_per_s",
-    "env_steps_per_s",
-]  # fmt: skip
-# per-environment state arrays of GridMDP saved with a training checkpoint (those the MDP has)
-_MDP_STATE = (
-    "position", "budget", "coverage", "seen_targets", "safety_flag", "landed", "crashed",
-    "rejected", "steps", "initial_budget",
-)  # fmt: skip
-
-
-def _mdp_state_names(mdp) -> list[str]:
-    return [k for k in _MDP_STATE if isinstance(vars(mdp).get(k), np.ndarray)]
-
-
-def set_threads(threads: int) -> int:
-    n = threads or os.cpu_count() or 1
-    torch.set_num_threads(n)
-    return n
-
-
-class ThreadTuner:
-    """``threads = 0``: pick the faster torch thread count while training (the CPU is shared).
-
-    Measured on the 2-core machine: one update takes 29 ms with 2 threads vs 56 ms with 1 when the
-    machine is idle, but 1,660 ms vs 190 ms when another process holds a core (OpenMP threads
-    spin-wait on each other). Every ``period`` updates, ``probe`` updates run with each candidate
-    count and the faster one is kept until the next probe.
-    """
-
-    def __init__(self, candidates: tuple[int, ...], period: int = 250, probe: int = 4):
-        self.candidates, self.period, self.probe = candidates, period, probe
-        self.times = {n: [] for n in candidates}
-        self.chosen = candidates[-1]
-
-    def before(self, update: int) -> None:
-        phase = update % self.period
-        k = phase // self.probe
-        torch.set_num_threads(self.candidates[k] if k < len(self.candidates) else self.chosen)
-
-    def after(self, update: int, seconds: float) -> None:
-        phase = update % self.period
-        k = phase // self.probe
-        if k < len(self.candidates):
-            self.times[self.candidates[k]].append(seconds)
-        if phase == self.probe * len(self.candidates) - 1:
-            # skip the first probe update of each count (it pays the switch)
-            self.chosen = min(
-                self.candidates, key=lambda n: np.median(self.times[n][1:] or [np.inf])
-            )
-            self.times = {n: [] for n in self.candidates}
+from cpp_mujoco.review.training_plot import write_training_log
 
 
 class Trainer:
@@ -140,6 +90,7 @@ class Trainer:
         self.best: tuple[float, float] | None = None
         self.last_stats = {"loss": float("nan"), "q": float("nan")}
         self.last_eval: tuple[int, int, EvaluationResult] | None = None  # (updates, step, result)
+        self.last_save = time.perf_counter()  # for checkpoint_minutes
 
     # ------------------------------------------------------------------ collection and learning
     def collect(self) -> None:
@@ -237,7 +188,7 @@ class Trainer:
             self.online,
             self.config.input_budget_scale,
             self.device,
-            name=f"ddqn-{self.grid_map.name}",
+            name=f"ddqn-{self.grid_map.label}",
         )
 
     def evaluate(self, full: bool = False) -> EvaluationResult:
@@ -246,43 +197,30 @@ class Trainer:
         step = 1 if full else c.eval_budget_step
         if self.last_eval is not None and self.last_eval[:2] == (self.updates, step):
             return self.last_eval[2]  # these weights were just evaluated on these budgets
-        budgets = sorted({*range(c.min_budget, c.max_budget + 1, step), c.max_budget})
+        budgets = protocol_budgets(self.grid_config, step)
         res = evaluate(self.agent(), self.grid_map, budgets=budgets, config=self.grid_config)
         self.online.train()
         self.last_eval = (self.updates, step, res)
         return res
 
-    def log(self, row: dict, rate: tuple[float, float]) -> dict:
+    def log(self, res: EvaluationResult) -> dict:
+        """Add an evaluation to the history; rewrite ``log.csv`` and ``training.png``."""
+        now, (t_mark, updates, steps) = time.perf_counter(), self._mark
         recent = np.array(self.recent, dtype=float) if self.recent else np.full((1, 3), np.nan)
         row = {
-            "updates": self.updates,
-            "env_steps": self.env_steps,
-            "episodes": self.episodes,
-            "wall_s": round(self.wall_s, 1),
-            **row,
-            "train_return": recent[:, 0].mean(),
-            "train_landing": recent[:, 1].mean(),
-            "train_coverage": recent[:, 2].mean(),
-            **self.last_stats,
-            "updates_per_s": rate[0],
-            "env_steps_per_s": rate[1],
-        }
+            "updates": self.updates, "env_steps": self.env_steps, "episodes": self.episodes,
+            "wall_s": round(self.wall_s, 1), "eval_landing": res.landing_ratio,
+            "eval_coverage": res.coverage_ratio, "eval_return": float(res.returns.mean()),
+            "train_return": recent[:, 0].mean(), "train_landing": recent[:, 1].mean(),
+            "train_coverage": recent[:, 2].mean(), **self.last_stats,
+            "updates_per_s": (self.updates - updates) / (now - t_mark),
+            "env_steps_per_s": (self.env_steps - steps) / (now - t_mark),
+        }  # fmt: skip
         row = {
             k: (int(v) if isinstance(v, (int, np.integer)) else float(v)) for k, v in row.items()
         }
         self.history.append(row)
-        path = self.out / "log.csv"
-        tmp = path.with_name("log.csv.tmp")
-        with open(tmp, "w", newline="") as f:
-            writer = csv.DictWriter(f, LOG_FIELDS)
-            writer.writeheader()
-            writer.writerows(self.history)
-        os.replace(tmp, path)
-        plot_history(
-            self.history,
-            self.out / "training.png",
-            title=f"DDQN training on map {self.grid_map.name}",
-        )
+        write_training_log(self.history, self.out, f"DDQN training on map {self.grid_map.label}")
         return row
 
     # ------------------------------------------------------------------ checkpoints
@@ -295,168 +233,134 @@ class Trainer:
         return agent_payload(
             self.online,
             budget_scale=self.config.input_budget_scale,
-            map_name=self.grid_map.name,
+            map_name=self.grid_map.label,
             config=self.config.to_dict(),
             metrics=metrics,
+            map_digest=self.grid_map.digest,
         )
 
     def state_dict(self) -> dict:
-        mdp = self.env.unwrapped.mdp
-        venv = self.env.unwrapped
-        return {
-            **self.agent_state(),
-            "kind": TRAIN_KIND,
-            "target": self.target.state_dict(),
-            "optimizer": self.optimizer.state_dict(),
-            "replay": self.replay.state_dict(),
-            "env": {
-                **{k: torch.from_numpy(np.array(getattr(mdp, k))) for k in _mdp_state_names(mdp)},
-                "pending_reset": torch.from_numpy(venv._pending_reset.copy()),
-                "rng": venv.np_random.bit_generator.state,
-            },
-            "obs": {k: torch.from_numpy(np.array(v)) for k, v in self.obs.items()},
-            "ep_return": torch.from_numpy(self.ep_return.copy()),
-            "rng": self.rng.bit_generator.state,
-            "torch_gen": self.torch_gen.get_state(),
-            "torch_rng": torch.get_rng_state(),
-            "counters": {
-                "updates": self.updates,
-                "env_steps": self.env_steps,
-                "episodes": self.episodes,
-                "wall_s": self.wall_s,
-                "update_credit": self.update_credit,
-            },
-            "recent": [list(map(float, r)) for r in self.recent],
-            "history": self.history,
-            "best": list(self.best) if self.best else None,
-        }
+        return training_state(self)
 
-    def load_state_dict(self, s: dict) -> None:
-        if s.get("kind") != TRAIN_KIND:
-            raise CheckpointError(
-                "an agent file cannot be resumed; pass a training checkpoint (checkpoint.pt)"
-            )
-        self.online.load_state_dict(s["network"])
-        self.target.load_state_dict(s["target"])
-        self.optimizer.load_state_dict(s["optimizer"])
-        self.replay.load_state_dict(s["replay"])
-        mdp, venv = self.env.unwrapped.mdp, self.env.unwrapped
-        for k in _mdp_state_names(mdp):
-            setattr(mdp, k, s["env"][k].numpy().copy())
-        venv._pending_reset = s["env"]["pending_reset"].numpy().copy()
-        venv.np_random.bit_generator.state = s["env"]["rng"]
-        self.obs = {k: v.numpy().copy() for k, v in s["obs"].items()}
-        self.obs["map"] = mdp.observation()["map"]
-        self.ep_return = s["ep_return"].numpy().copy()
-        self.rng.bit_generator.state = s["rng"]
-        self.torch_gen.set_state(s["torch_gen"])
-        torch.set_rng_state(s["torch_rng"])
-        for k, v in s["counters"].items():
-            setattr(self, k, v)
-        self.recent.extend(tuple(r) for r in s["recent"])
-        self.history = list(s["history"])
-        self.best = tuple(s["best"]) if s["best"] else None
+    def load_state_dict(self, state: dict) -> None:
+        restore_training_state(self, state)
 
     def save(self) -> None:
         atomic_save(self.state_dict(), self.out / "checkpoint.pt")
         atomic_save(self.agent_state(), self.out / "agent.pt")
+        self.last_save = time.perf_counter()
 
     def resume(self) -> bool:
+        """Load ``checkpoint.pt`` from the run folder (False if there is none). Refuses a
+        checkpoint of another map or one trained with other learning settings."""
         path = self.out / "checkpoint.pt"
         if not path.exists():
             return False
         state = load_checkpoint(path, map_shape=self.grid_map.shape)
-        stored = TrainConfig.from_dict(state["config"])
-        if stored.map != self.config.map and load_map(stored.map).name != self.grid_map.name:
-            raise CheckpointError(
-                f"{path} was trained on map {stored.map!r}, not {self.config.map!r}"
-            )
-        if (stored.num_envs, stored.buffer_size, stored.n_step) != (
-            self.config.num_envs,
-            self.config.buffer_size,
-            self.config.n_step,
-        ):
-            raise CheckpointError(
-                f"{path}: num_envs/buffer_size/n_step differ from the stored run; "
-                "resume with the same settings"
-            )
+        check_resumable(path, state, self.config, self.grid_map)
         self.load_state_dict(state)
         return True
 
     # ------------------------------------------------------------------ the loop
     def run(self, progress: bool = True) -> dict:
+        """Train until ``total_updates`` or ``max_minutes``; SIGINT/SIGTERM save a resumable
+        checkpoint and raise :class:`TrainingInterrupted`."""
         c = self.config
         self.out.mkdir(parents=True, exist_ok=True)
-        bar = tqdm(
+        self._bar = tqdm(
             total=c.total_updates,
             initial=self.updates,
             disable=not progress,
             unit="upd",
             dynamic_ncols=True,
         )
-        t_start, wall0 = time.perf_counter(), self.wall_s
-        mark = (time.perf_counter(), self.updates, self.env_steps)
-        while self.updates < c.total_updates:
-            if c.max_minutes and self.wall_s >= c.max_minutes * 60:
-                break
-            self.collect()
-            if len(self.replay) >= c.learning_starts and self.replay.can_sample():
-                self.update_credit += c.updates_per_step
-                while self.update_credit >= 1.0 and self.updates < c.total_updates:
-                    self.update_credit -= 1.0
-                    self.update()
-                    bar.update(1)
-                    if self.updates % c.eval_every == 0 or self.updates == c.total_updates:
-                        self.wall_s = wall0 + time.perf_counter() - t_start
-                        now = time.perf_counter()
-                        rate = (
-                            (self.updates - mark[1]) / (now - mark[0]),
-                            (self.env_steps - mark[2]) / (now - mark[0]),
-                        )
-                        res = self.evaluate()
-                        row = self.log(
-                            {
-                                "eval_landing": res.landing_ratio,
-                                "eval_coverage": res.coverage_ratio,
-                                "eval_return": float(res.returns.mean()),
-                            },
-                            rate,
-                        )
-                        # best = highest greedy return (the objective: crashes weigh −150)
-                        score = (row["eval_return"], row["eval_landing"])
-                        if self.best is None or score > self.best:
-                            self.best = score
-                            atomic_save(self.agent_state(), self.out / "best.pt")
-                        bar.write(
-                            f"[{self.updates} upd, {self.episodes} ep, {self.wall_s:.0f}s] "
-                            f"eval landing {row['eval_landing']:.4f} "
-                            f"coverage {row['eval_coverage']:.4f} return {row['eval_return']:.2f}"
-                        )
-                        mark = (time.perf_counter(), self.updates, self.env_steps)
-                    if self.updates % c.checkpoint_every == 0:
-                        self.wall_s = wall0 + time.perf_counter() - t_start
-                        self.save()
-            self.wall_s = wall0 + time.perf_counter() - t_start
-            if self.recent and self.env_steps % (c.num_envs * 20) == 0:
-                r = np.array(self.recent, dtype=float)
-                bar.set_postfix(
-                    ep=self.episodes,
-                    ret=f"{r[:, 0].mean():.1f}",
-                    land=f"{r[:, 1].mean():.3f}",
-                    cov=f"{r[:, 2].mean():.3f}",
-                    thr=torch.get_num_threads(),
-                    refresh=False,
-                )
-        bar.close()
-        self.save()
+        self._start = (time.perf_counter(), self.wall_s)
+        self._mark = (time.perf_counter(), self.updates, self.env_steps)
+        self.last_save = time.perf_counter()
+        try:
+            with StopSignals() as stop:
+                while True:
+                    self._drain(stop)  # first: a resumed run may hold update credit
+                    self._tick()
+                    if stop.received or self._finished():
+                        break
+                    self.collect()
+                    if len(self.replay) >= c.learning_starts and self.replay.can_sample():
+                        self.update_credit += c.updates_per_step
+                self.save()  # still under StopSignals: a second signal aborts it cleanly
+        finally:
+            self._bar.close()
+        if stop.received:
+            raise TrainingInterrupted(stop.received, self.updates, self.out / "checkpoint.pt")
         if c.final_eval:
             res = self.evaluate(full=True)
+            res.conditions["training"] = {
+                "agent": str(self.out / "agent.pt"), "updates": self.updates,
+                "env_steps": self.env_steps, "config": self.config.to_dict(),
+            }  # fmt: skip
             res.to_json(self.out / "final_eval.json")
             print(
                 f"full protocol ({res.landed.size} episodes): landing {res.landing_ratio:.4f}, "
                 f"coverage {res.coverage_ratio:.4f}"
             )
         return self.history[-1] if self.history else {}
+
+    def _finished(self) -> bool:
+        c = self.config
+        out_of_time = bool(c.max_minutes) and self.wall_s >= c.max_minutes * 60
+        return self.updates >= c.total_updates or out_of_time
+
+    def _clock(self) -> None:
+        t0, wall0 = self._start
+        self.wall_s = wall0 + time.perf_counter() - t0
+
+    def _drain(self, stop: StopSignals) -> None:
+        """The updates the collected steps earned, each followed by its evaluation/checkpoint."""
+        c = self.config
+        while self.update_credit >= 1.0 and self.updates < c.total_updates and not stop.received:
+            self.update_credit -= 1.0
+            self.update()
+            self._bar.update(1)
+            if self.updates % c.eval_every == 0 or self.updates == c.total_updates:
+                self._clock()
+                self._evaluate_and_log()
+            if self.updates % c.checkpoint_every == 0:
+                self._clock()
+                self.save()
+
+    def _evaluate_and_log(self) -> None:
+        row = self.log(self.evaluate())
+        # best = highest greedy return (the objective: crashes weigh −150)
+        score = (row["eval_return"], row["eval_landing"])
+        if self.best is None or score > self.best:
+            self.best = score
+            atomic_save(self.agent_state(), self.out / "best.pt")
+        self._bar.write(
+            f"[{self.updates} upd, {self.episodes} ep, {self.wall_s:.0f}s] "
+            f"eval landing {row['eval_landing']:.4f} "
+            f"coverage {row['eval_coverage']:.4f} return {row['eval_return']:.2f}"
+        )
+        self._mark = (time.perf_counter(), self.updates, self.env_steps)
+
+    def _tick(self) -> None:
+        """Wall clock, the progress bar's figures and the wall-time checkpoint."""
+        c = self.config
+        self._clock()
+        if (
+            c.checkpoint_minutes
+            and time.perf_counter() - self.last_save >= c.checkpoint_minutes * 60
+        ):
+            self.save()
+        if self.recent and self.env_steps % (c.num_envs * 20) == 0:
+            r = np.array(self.recent, dtype=float)
+            self._bar.set_postfix(
+                ep=self.episodes,
+                ret=f"{r[:, 0].mean():.1f}",
+                land=f"{r[:, 1].mean():.3f}",
+                cov=f"{r[:, 2].mean():.3f}",
+                thr=torch.get_num_threads(),
+                refresh=False,
+            )
 
 
 def _concat(a: dict, b: dict) -> dict:
@@ -471,38 +375,23 @@ def _concat(a: dict, b: dict) -> dict:
 
 
 def train(
-    config: TrainConfig, out_dir: str | os.PathLike, *, resume: bool = False, progress: bool = True
+    config: TrainConfig,
+    out_dir: str | os.PathLike,
+    *,
+    resume: bool = False,
+    overwrite: bool = False,
+    progress: bool = True,
 ) -> Trainer:
-    """Train (or continue) a run in ``out_dir``; returns the trainer (``.history``, ``.online``)."""
-    trainer = Trainer(config, out_dir)
-    if resume and not trainer.resume():
-        print(f"no checkpoint in {out_dir}; starting a new run")
-    trainer.run(progress=progress)
+    """Train (or continue) a run in ``out_dir``, which is locked meanwhile; returns the trainer.
+
+    A non-empty ``out_dir`` needs ``resume`` (continue its checkpoint) or ``overwrite`` (replace
+    the run): :class:`~cpp_mujoco.agent.run_folder.RunFolderError` otherwise, before any write.
+    """
+    with claim_run_folder(out_dir, resume=resume, overwrite=overwrite) as out:
+        trainer = Trainer(config, out)
+        if resume and trainer.resume():
+            print(f"resuming {out / 'checkpoint.pt'} at update {trainer.updates}")
+        elif resume:
+            print(f"--resume: no checkpoint.pt in {out}; starting a new run there")
+        trainer.run(progress=progress)
     return trainer
-
-
-def plot_history(history: list[dict], path: str | os.PathLike, title: str = "") -> None:
-    """The paper's Fig. 4: greedy-policy return over training, with landing and coverage ratios."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    x = [h["episodes"] for h in history]
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
-    ax1.plot(x, [h["eval_return"] for h in history], color="tab:blue", marker=".")
-    ax1.set_ylabel("greedy return (mean)")
-    ax1.grid(alpha=0.3)
-    ax2.plot(x, [h["eval_landing"] for h in history], label="landing ratio", marker=".")
-    ax2.plot(x, [h["eval_coverage"] for h in history], label="coverage ratio", marker=".")
-    ax2.set_ylim(0, 1.02)
-    ax2.set_xlabel("training episodes")
-    ax2.legend(loc="lower right")
-    ax2.grid(alpha=0.3)
-    if title:
-        ax1.set_title(title)
-    fig.tight_layout()
-    tmp = Path(f"{os.fspath(path)}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)

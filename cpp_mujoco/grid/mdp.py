@@ -1,4 +1,4 @@
-"""The grid MDP of the paper (DESIGN §3), for a batch of N environments held in arrays.
+"""The paper's grid MDP, for a batch of N environments held in arrays.
 
 This is the one implementation of the rules: the single :class:`~cpp_mujoco.grid.env.GridEnv` is
 a batch of one, the vector env a batch of many, evaluation and planners use it directly.
@@ -10,8 +10,9 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from cpp_mujoco.grid.coverage import mark_seen, square_fov_masks
-from cpp_mujoco.grid.safety import NUM_ACTIONS, SafetyController
+from cpp_mujoco.grid.actions import NUM_ACTIONS
+from cpp_mujoco.grid.coverage import mark_fov, square_fov_cells
+from cpp_mujoco.grid.safety import SafetyController
 from cpp_mujoco.grid.spaces import MAX_BUDGET
 from cpp_mujoco.maps import GridMap
 
@@ -65,6 +66,23 @@ class GridConfig:
 
 
 @dataclass
+class Outcome:
+    """What one action did to each environment, however it was simulated (arrays (N,)).
+
+    The grid derives it from the safety controller and the square field of view, the physics
+    backend from the flight (budget from the energy drawn, coverage from the camera). Either way
+    :meth:`GridMDP.apply` turns it into reward and flags, so those rules exist once.
+    """
+
+    next_cell: np.ndarray  # flat cell the UAV is over afterwards (where it was, if rejected)
+    rejected: np.ndarray  # the safety controller rejected the action: the UAV hovered
+    landed: np.ndarray  # it touched down this step
+    spent: np.ndarray  # budget units used (the grid: 1; physics: the energy drawn, in units)
+    newly_seen: np.ndarray  # target cells seen for the first time (coverage is already marked)
+    failed: np.ndarray | None = None  # the flight ended physically (battery, flip, …)
+
+
+@dataclass
 class StepOutcome:
     """Per-environment results of one batched step (arrays of shape (N,))."""
 
@@ -78,6 +96,12 @@ class StepOutcome:
 class GridMDP:
     """N copies of the grid MDP. State lives in flat arrays; cells are indexed ``row * W + col``."""
 
+    # the per-environment state arrays: all a saved run needs (:meth:`state_dict`)
+    STATE = (
+        "position", "budget", "coverage", "seen_targets", "landed", "crashed", "rejected",
+        "initial_budget",
+    )  # fmt: skip
+
     def __init__(self, grid_map: GridMap, num_envs: int = 1, config: GridConfig | None = None):
         if num_envs < 1:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
@@ -86,8 +110,10 @@ class GridMDP:
         self.num_envs = num_envs
         self.height, self.width = grid_map.shape
         self.safety = SafetyController(grid_map)
-        self.fov = square_fov_masks(grid_map, self.config.fov_side)
         self.target = grid_map.target.reshape(-1)
+        # the field of view as (cells, side²) indices, not a (cells, cells) mask: memory ∝ cells
+        self.fov_cells, fov_valid = square_fov_cells(grid_map.shape, self.config.fov_side)
+        self.fov_counted = fov_valid & self.target[self.fov_cells]
         self.num_targets = int(self.target.sum())
         self.landing_cells = np.flatnonzero(grid_map.landing)
         self.map_layers = grid_map.layers.astype(np.int8)
@@ -113,7 +139,8 @@ class GridMDP:
 
     @property
     def done(self) -> np.ndarray:
-        return self.landed | (self.budget <= 0)
+        """Landed, out of budget, or crashed (a physical failure can end a flight early)."""
+        return self.landed | (self.budget <= 0) | self.crashed
 
     def reset(
         self,
@@ -132,11 +159,11 @@ class GridMDP:
         idx = np.arange(self.num_envs) if mask is None else np.flatnonzero(mask)
         k = idx.size
         if start is None:
-            cells = self.landing_cells[rng.integers(self.landing_cells.size, size=k)]
+            cells = self.landing_cells[self.draw_start_index(rng.random(k))]
         else:
             cells = self._start_cells(start, k)
         if budget is None:
-            budgets = rng.integers(self.config.min_budget, self.config.max_budget + 1, size=k)
+            budgets = self.draw_budget(rng.random(k))
         else:
             budgets = np.broadcast_to(np.asarray(budget), (k,))
             if (
@@ -153,13 +180,17 @@ class GridMDP:
         self.rejected[idx] = False
         self.initial_budget[idx] = budgets
 
-    def reset_with_options(self, rng: np.random.Generator, options: dict | None) -> None:
-        """The single envs' ``reset(options=...)``: ``start`` and ``budget``, nothing else."""
-        options = dict(options or {})
-        start, budget = options.pop("start", None), options.pop("budget", None)
-        if options:
-            raise ValueError(f"unknown reset option(s) {sorted(options)}; known: start, budget")
-        self.reset(rng, start=start, budget=budget)
+    # Draws map uniform [0, 1) doubles to starts and budgets: one ``Generator.random`` call per
+    # value is several times cheaper than ``Generator.integers``, which matters where each env
+    # draws from its own generator (the vector env's resets).
+    def draw_start_index(self, u: np.ndarray | float) -> np.ndarray:
+        """Index into ``landing_cells`` for uniform draw(s) ``u`` in [0, 1)."""
+        return (np.asarray(u) * self.landing_cells.size).astype(np.int64)
+
+    def draw_budget(self, u: np.ndarray | float) -> np.ndarray:
+        """Budget uniform over min..max (inclusive) for uniform draw(s) ``u`` in [0, 1)."""
+        lo, hi = self.config.min_budget, self.config.max_budget + 1
+        return lo + (np.asarray(u) * (hi - lo)).astype(np.int64)
 
     def restore(self, position: np.ndarray, budget: np.ndarray, coverage: np.ndarray) -> None:
         """Put every environment into a given mid-episode state (flat cells, budgets, (N, H·W)
@@ -188,7 +219,9 @@ class GridMDP:
         return cells
 
     def step(self, actions: np.ndarray, active: np.ndarray | None = None) -> StepOutcome:
-        """Apply one action per environment (DESIGN §3 steps 1–6).
+        """Apply one action per environment, in the paper's order: the safety controller
+        decides, the UAV moves (or hovers), one budget unit is spent, the field of view is
+        marked (the landing step included), then :meth:`apply` gives reward and termination.
 
         Environments not ``active`` (default: those already done) keep their state and get
         reward 0 and ``terminated`` as it was.
@@ -201,31 +234,66 @@ class GridMDP:
         if active is None:
             active = ~self.done
         everyone = bool(active.all())  # the common case skips the masking below
-        # 1. safety controller
         next_cell, rejected, lands = self.safety.decide(self.position, actions)
-        if everyone:
-            self.position = next_cell
-        else:
+        if not everyone:
             rejected &= active
-            self.position = np.where(active, next_cell, self.position)
-        self.landed |= lands & active
-        # 2.–3. every action costs one unit; the flag reports this step's rejection
-        self.budget -= active
-        self.rejected = rejected
-        # 4. field of view marked after every step, the landing step included
-        seen = self.fov[self.position]
-        if not everyone:
-            seen &= active[:, None]
-        newly_seen = mark_seen(self.coverage, seen, self.target)
-        self.seen_targets += newly_seen
-        # 5.–6. reward and termination
+            lands &= active
+            next_cell = np.where(active, next_cell, self.position)
+        marked = None if everyone else np.flatnonzero(active)
+        newly_seen = mark_fov(self.coverage, self.fov_cells, self.fov_counted, next_cell, marked)
+        outcome = Outcome(next_cell, rejected, lands, active, newly_seen)
+        return self.apply(outcome, None if everyone else active)
+
+    def apply(self, outcome: Outcome, active: np.ndarray | None = None) -> StepOutcome:
+        """The rules of one step, for an outcome from either backend: move, spend, flag, count,
+        then reward (paper §II-C), crash (out of budget unlanded, or a physical failure) and
+        termination. ``active`` (default all) masks crashes and rewards of envs not stepped.
+        """
+        self.position = outcome.next_cell
+        self.landed |= outcome.landed
+        self.budget -= outcome.spent
+        self.rejected = outcome.rejected  # the safety flag of the next observation
+        self.seen_targets += outcome.newly_seen
         out_of_budget = self.budget <= 0
-        crashed = out_of_budget & ~self.landed & active
+        crashed = out_of_budget & ~self.landed
+        if outcome.failed is not None:
+            crashed |= outcome.failed
+        if active is not None:
+            crashed &= active
         self.crashed |= crashed
-        reward = self.config.rewards(newly_seen, rejected, crashed)
-        if not everyone:
+        reward = self.config.rewards(outcome.newly_seen, outcome.rejected, crashed)
+        if active is not None:
             reward *= active
-        return StepOutcome(reward, self.landed | out_of_budget, rejected, crashed, newly_seen)
+        terminated = self.landed | out_of_budget | self.crashed
+        return StepOutcome(reward, terminated, outcome.rejected, crashed, outcome.newly_seen)
+
+    # ------------------------------------------------------------------ saving and restoring
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Copies of the per-environment state arrays (:data:`STATE`), e.g. for a checkpoint."""
+        return {k: getattr(self, k).copy() for k in self.STATE}
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        """The inverse of :meth:`state_dict`. ``ValueError`` naming the first entry that is
+        missing, unknown or of another shape or kind; nothing is set unless all of them fit."""
+        unknown = set(state) - set(self.STATE)
+        if unknown:
+            raise ValueError(f"unknown env state entries {sorted(unknown)}")
+        arrays = {}
+        for k in self.STATE:
+            if k not in state:
+                raise ValueError(f"env state lacks {k!r}")
+            mine, value = getattr(self, k), np.asarray(state[k])
+            if value.shape != mine.shape or value.dtype.kind != mine.dtype.kind:
+                raise ValueError(
+                    f"env state {k!r} is {value.dtype}{list(value.shape)}; "
+                    f"this env needs {mine.dtype}{list(mine.shape)}"
+                )
+            arrays[k] = value.astype(mine.dtype)  # a copy, C-contiguous as mark_fov needs
+        for k, value in arrays.items():
+            if k == "coverage":
+                self.coverage[...] = value  # in place: the flight's camera marks this array
+            else:
+                setattr(self, k, value)
 
     # ------------------------------------------------------------------ views of the state
     def observation(self) -> dict[str, np.ndarray]:

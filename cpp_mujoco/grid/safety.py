@@ -9,13 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from cpp_mujoco.grid.actions import LAND, MOVES
 from cpp_mujoco.maps import GridMap
-
-NORTH, EAST, SOUTH, WEST, LAND = range(5)
-ACTION_NAMES = ("north", "east", "south", "west", "land")
-NUM_ACTIONS = 5
-# (d_row, d_col) of each move; LAND does not move.
-MOVES = np.array([[-1, 0], [0, 1], [1, 0], [0, -1], [0, 0]], dtype=np.int64)
 
 
 class SafetyController:

@@ -1,21 +1,31 @@
 """The arena: ground tiles and no-fly volumes built from a grid map, with the quadrotor attached.
 
-World frame: x east, y north, z up; the map is centred on the origin, so cell (row, col) — row 0
-the north edge — has its centre at ``x = (col + ½ − W/2)·cell``, ``y = (H/2 − row − ½)·cell``.
+Cells sit where :class:`~cpp_mujoco.physics.geometry.GridGeometry` puts them (x east, y north,
+the map centred on the origin).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import os
+import warnings
 
 import mujoco
-import numpy as np
-from dm_control import mjcf
 
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.physics.quadrotor import quadrotor_xml
+
+with warnings.catch_warnings():
+    # dm_control picks its own GL backend when imported; with MUJOCO_GL unset it tries GLFW,
+    # which warns on a headless machine. We never render through dm_control (rendering picks
+    # its backend at the first frame, see review/rendering.py), so that warning says nothing.
+    if not os.environ.get("MUJOCO_GL"):
+        warnings.filterwarnings("ignore", module="glfw")
+    from dm_control import mjcf
+
+__all__ = ["GridGeometry", "build_arena", "camera_fovy", "compile_arena", "zone_of"]
 
 # the paper's colours; a landing cell that is also a target shows as landing (blue-green)
 ZONE_RGBA = {
@@ -39,36 +49,6 @@ def zone_of(grid_map: GridMap, row: int, col: int) -> str:
     return "target" if target else "empty"
 
 
-@dataclass(frozen=True)
-class GridGeometry:
-    """Conversions between grid cells and world coordinates."""
-
-    height: int
-    width: int
-    cell_size: float
-
-    def cell_center(self, row: int, col: int) -> tuple[float, float]:
-        cs = self.cell_size
-        return ((col + 0.5 - self.width / 2) * cs, (self.height / 2 - row - 0.5) * cs)
-
-    def cell_of(self, x: float, y: float) -> tuple[int, int]:
-        """(row, col) containing world point (x, y); may lie outside the grid."""
-        cs = self.cell_size
-        return (math.floor(self.height / 2 - y / cs), math.floor(x / cs + self.width / 2))
-
-    def centers(self) -> np.ndarray:
-        """(H·W, 2) world xy of every cell centre, in flat cell order ``row·W + col``."""
-        rows, cols = np.divmod(np.arange(self.height * self.width), self.width)
-        cs = self.cell_size
-        return np.stack(
-            [(cols + 0.5 - self.width / 2) * cs, (self.height / 2 - rows - 0.5) * cs], 1
-        )
-
-    @property
-    def half_extent(self) -> tuple[float, float]:
-        return (self.width * self.cell_size / 2, self.height * self.cell_size / 2)
-
-
 def camera_fovy(config: PhysicsConfig, fov_side: int = 3) -> float:
     """Vertical field of view (deg, square image) whose footprint, hovering level at cruise
     altitude over a cell centre, spans exactly ``fov_side`` × ``fov_side`` cells."""
@@ -77,7 +57,7 @@ def camera_fovy(config: PhysicsConfig, fov_side: int = 3) -> float:
 
 def build_arena(grid_map: GridMap, config: PhysicsConfig, fov_side: int = 3) -> mjcf.RootElement:
     """The MJCF model of the map with the quadrotor attached on a free joint."""
-    geo = GridGeometry(*grid_map.shape, config.cell_size)
+    geo = GridGeometry.of(grid_map, config.cell_size)
     hx, hy = geo.half_extent
     arena = mjcf.RootElement(model=f"arena_{grid_map.name}")
     arena.option.timestep = config.timestep

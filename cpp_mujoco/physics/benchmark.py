@@ -99,6 +99,11 @@ def flight_figures(wind_speed: float = 8.0) -> dict:
     }
 
 
+def run() -> dict:
+    """The ``physics`` section as ``cpp-mujoco benchmark`` runs it."""
+    return benchmark_physics(seconds=5.0)
+
+
 if __name__ == "__main__":
     import argparse
     import json

@@ -3,27 +3,37 @@
 The unit depends only on how a calm move flies (airframe, controller, timing, geometry), not on
 the map or the weather, so it is cached per configuration: in this process, and as a small JSON
 file keyed by a hash of the configuration, the model XML, the flight code and the MuJoCo
-version (written
-atomically, so parallel test workers never read half a file).
+version (written atomically, so parallel test workers never read half a file). A cache file is
+trusted only if it holds its own key and a unit energy that is finite and within a plausible
+factor of the airframe's hover power × the move duration; anything else is recalibrated and
+rewritten — a wrong unit would silently rescale every physics budget.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
-import tempfile
 from dataclasses import replace
+from functools import cache
 from pathlib import Path
 
 import mujoco
 
+from cpp_mujoco.io import WriteError, atomic_write_text
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.energy import PowerModel
 from cpp_mujoco.physics.flight import Flight
-from cpp_mujoco.physics.quadrotor import quadrotor_xml
+from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
 
 _MEMO: dict[str, dict] = {}
+# a calm one-cell move costs about hover power × move duration (≈ 1.03× for the defaults):
+# outside this band the figures are not a calibration of this airframe
+PLAUSIBLE_UNIT = (0.5, 4.0)
+_FIGURES = ("unit_energy_j", "move_energy_min_j", "move_energy_max_j", "move_duration_s",
+            "hover_power_w", "hover_energy_j")  # fmt: skip
 # out and back along both axes from the middle of a 3×3 map: every heading flown once each way
 _MOVES = ((1, 2), (1, 1), (0, 1), (1, 1), (1, 0), (1, 1), (2, 1), (1, 1))
 
@@ -36,7 +46,7 @@ def cache_dir() -> Path:
 
 def calibrate(config: PhysicsConfig) -> dict:
     """Fly the calibration moves and return the figures (energy per move in J, …)."""
-    calm = replace(config, wind_speed=0.0, gust_std=0.0)
+    calm = replace(config, wind_speed=0.0, gust_std=0.0, turbulence="none")
     grid = GridMap.from_ascii(["GGG", "GGG", "GGG"], name="calibration")
     flight = Flight(compile_arena(build_arena(grid, calm)), grid, calm)
     flight.reset(1, 1)
@@ -56,7 +66,7 @@ def calibrate(config: PhysicsConfig) -> dict:
 
 
 def calibration(config: PhysicsConfig) -> dict:
-    """Cached :func:`calibrate` for this configuration."""
+    """Cached :func:`calibrate` for this configuration; an invalid cache file is recalibrated."""
     extra = quadrotor_xml().read_text() + mujoco.__version__ + _source_digest()
     key = config.calibration_key(extra)
     if key in _MEMO:
@@ -64,11 +74,57 @@ def calibration(config: PhysicsConfig) -> dict:
     path = cache_dir() / f"{key}.json"
     try:
         result = json.loads(path.read_text())
+        check_calibration(result, config, key)
     except (OSError, ValueError):
-        result = calibrate(config)
-        _write_atomic(path, result)
+        result = {"key": key, **calibrate(config)}
+        check_calibration(result, config, key, fresh=True)
+        try:
+            atomic_write_text(path, json.dumps(result, indent=1))
+        except WriteError:
+            pass  # a read-only cache only costs a re-calibration next time
     _MEMO[key] = result
     return result
+
+
+def check_calibration(data: object, config: PhysicsConfig, key: str, fresh: bool = False) -> None:
+    """Raise ``ValueError`` unless ``data`` is a calibration of ``config`` under ``key``.
+
+    A freshly flown calibration that fails is a broken flight model: ``RuntimeError``.
+    """
+    try:
+        if not isinstance(data, dict) or data.get("key") != key:
+            raise ValueError("the cache file is not a calibration for this configuration")
+        for name in _FIGURES:
+            value = data.get(name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{name} is {value!r}, not a number")
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} is {value!r}, not a finite positive number")
+        expected = hover_power(config) * config.move_duration
+        lo, hi = PLAUSIBLE_UNIT
+        if not lo * expected <= data["unit_energy_j"] <= hi * expected:
+            raise ValueError(
+                f"unit_energy_j {data['unit_energy_j']:.6g} J is outside {lo}..{hi} × hover "
+                f"power × move duration ({expected:.6g} J)"
+            )
+        if not data["move_energy_min_j"] <= data["unit_energy_j"] <= data["move_energy_max_j"]:
+            raise ValueError("unit_energy_j is not between move_energy_min_j and _max_j")
+    except ValueError as e:
+        if fresh:
+            raise RuntimeError(f"implausible calibration flight: {e}") from None
+        raise
+
+
+def hover_power(config: PhysicsConfig) -> float:
+    """W the airframe draws to hover in ``config``'s air (momentum theory, no flight needed)."""
+    params = _airframe()
+    return PowerModel(params, config.air_density).power([params.weight / 4] * 4)
+
+
+@cache
+def _airframe() -> QuadrotorParams:
+    model = mujoco.MjModel.from_xml_path(str(quadrotor_xml()))
+    return QuadrotorParams.from_model(model, prefix="")
 
 
 def unit_energy(config: PhysicsConfig) -> float:
@@ -77,18 +133,9 @@ def unit_energy(config: PhysicsConfig) -> float:
 
 
 def _source_digest() -> str:
-    """The code that flies a move: a change to it must invalidate cached units."""
+    """The code that flies a move: a change to it must invalidate cached units (``config.py``
+    too: default gains are left out of the key, their values are in its source)."""
     here = Path(__file__).resolve().parent
-    names = ("controller.py", "flight.py", "energy.py", "wind.py", "arena.py", "quadrotor.py")
+    names = ("controller.py", "flight.py", "energy.py", "wind.py", "arena.py", "quadrotor.py",
+             "geometry.py", "config.py")  # fmt: skip
     return "".join((here / n).read_text() for n in names)
-
-
-def _write_atomic(path: Path, data: dict) -> None:
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "w") as fh:
-            json.dump(data, fh, indent=1)
-        os.replace(tmp, path)
-    except OSError:
-        pass  # a read-only home only costs a re-calibration next time

@@ -1,9 +1,10 @@
-"""Camera footprint geometry: the frustum of the downward camera intersected with the ground.
+"""The coverage sensor: the downward camera's footprint on the ground decides what is seen.
 
 No rendering: from the camera pose (``data.cam_xpos``, ``data.cam_xmat``) the four corner rays of
 the square image are intersected with the ground plane z = 0, and the cells whose centres lie in
-that quadrilateral are seen. A MuJoCo camera looks along its local −z with +y up in the image, so
-the corner rays of a square image with half-angle θ are (±tanθ, ±tanθ, −1).
+that quadrilateral are seen (:class:`CoverageCamera`, owned by the flight). A MuJoCo camera looks
+along its local −z with +y up in the image, so the corner rays of a square image with half-angle θ
+are (±tanθ, ±tanθ, −1).
 
 Written in scalars: the polygon has four corners and only the ~10–20 cells under its bounding box
 are tested, where numpy's per-call overhead would cost more than the arithmetic.
@@ -13,7 +14,12 @@ from __future__ import annotations
 
 import math
 
-from cpp_mujoco.physics.arena import GridGeometry
+import mujoco
+import numpy as np
+
+from cpp_mujoco.grid.coverage import mark_seen
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.geometry import GridGeometry
 
 Polygon = list[tuple[float, float]]
 
@@ -63,18 +69,74 @@ def cells_in_footprint(polygon: Polygon, geo: GridGeometry) -> list[int]:
     """Flat indices (``row·W + col``) of the grid cells whose centres lie in ``polygon``."""
     xs = [p[0] for p in polygon]
     ys = [p[1] for p in polygon]
-    inv = 1.0 / geo.cell_size
-    h2, w2 = geo.height / 2, geo.width / 2
-    # centre of (r, c): x = (c + ½ − W/2)·cs  →  c ∈ [x_min/cs + W/2 − ½, x_max/cs + W/2 − ½]
-    c_lo = max(0, math.ceil(min(xs) * inv + w2 - 0.5))
-    c_hi = min(geo.width - 1, math.floor(max(xs) * inv + w2 - 0.5))
-    r_lo = max(0, math.ceil(h2 - max(ys) * inv - 0.5))
-    r_hi = min(geo.height - 1, math.floor(h2 - min(ys) * inv - 0.5))
-    cs, w = geo.cell_size, geo.width
+    rows, cols = geo.centred_in(min(xs), max(xs), min(ys), max(ys))
+    center, w = geo.cell_center, geo.width
     found = []
-    for r in range(r_lo, r_hi + 1):
-        y = (h2 - r - 0.5) * cs
-        for c in range(c_lo, c_hi + 1):
-            if inside_polygon(polygon, (c + 0.5 - w2) * cs, y):
+    for r in rows:
+        for c in cols:
+            if inside_polygon(polygon, *center(r, c)):
                 found.append(r * w + c)
     return found
+
+
+class CoverageCamera:
+    """The downward camera as a coverage sensor: each :meth:`capture` marks the target cells it
+    sees in ``coverage`` (the env's (1, H·W) coverage row, shared) and counts the new ones.
+
+    A cell is seen when its centre lies in the footprint *and* within the nominal (level, cruise
+    altitude) footprint around the camera's nadir point; frames more than
+    ``config.max_frame_tilt_deg`` off nadir, or with the horizon in view, see nothing (why:
+    ``PhysicsConfig``). Frames are due every ``1 / config.camera_rate`` s (:attr:`next_frame`).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        geo: GridGeometry,
+        config: PhysicsConfig,
+        target: np.ndarray,
+        coverage: np.ndarray,
+        camera: str = "quadrotor/downward",
+    ):
+        self.cam_id = int(model.camera(camera).id)
+        fovy = math.radians(float(model.cam_fovy[self.cam_id]))
+        self.rays = corner_rays(float(model.cam_fovy[self.cam_id]))
+        self._pos, self._mat = data.cam_xpos[self.cam_id], data.cam_xmat[self.cam_id]
+        self.geo = geo
+        self.period = 1.0 / config.camera_rate
+        self.cos_max_tilt = math.cos(math.radians(config.max_frame_tilt_deg))
+        self.nominal_half = config.altitude * math.tan(fovy / 2) + 1e-6  # level footprint, m
+        self._centers = [tuple(c) for c in geo.centers().tolist()]
+        self.target = target.reshape(-1)
+        self.coverage = coverage
+        self._seen = np.zeros((1, self.target.size), dtype=bool)
+        self.reset()
+
+    def reset(self) -> None:
+        """A new episode: a frame is due at once."""
+        self.next_frame = 0.0
+        self.frames = 0
+        self.last_footprint: Polygon | None = None
+
+    def capture(self, time: float) -> int:
+        """Take a frame at simulated ``time``; return how many target cells it saw first."""
+        self.next_frame = time + self.period
+        self.frames += 1
+        pos, mat = self._pos.tolist(), self._mat.tolist()
+        poly = footprint(pos, mat, self.rays)
+        self.last_footprint = poly
+        if poly is None or mat[8] < self.cos_max_tilt:  # camera −z vs world −z
+            return 0
+        x, y, half, centers = pos[0], pos[1], self.nominal_half, self._centers
+        cells = [
+            c
+            for c in cells_in_footprint(poly, self.geo)
+            if abs(centers[c][0] - x) <= half and abs(centers[c][1] - y) <= half
+        ]
+        if not cells:
+            return 0
+        seen = self._seen
+        seen[:] = False
+        seen[0, cells] = True
+        return int(mark_seen(self.coverage, seen, self.target)[0])

@@ -12,10 +12,134 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from dataclasses import asdict, dataclass, fields
+import numbers
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+
+from cpp_mujoco.physics.turbulence import check_level
 
 # fields that do not change how a calm-air move flies (so they do not change the energy unit)
-_NOT_CALIBRATED = {"wind_speed", "wind_direction", "gust_std", "gust_tau", "unit_margin"}
+_NOT_CALIBRATED = {
+    "wind_speed", "wind_direction", "gust_std", "gust_tau", "turbulence", "unit_margin",
+}  # fmt: skip
+
+_INF = math.inf
+# field: (low, high, low included, high included); every field must also be a finite number.
+# Upper bounds only where the physics breaks beyond them: a timestep past 20 ms is half the
+# 40 ms rotor lag (Euler on the filter); tilts are angles.
+_RANGES: dict[str, tuple[float, float, bool, bool]] = {
+    "cell_size": (0, _INF, False, False),
+    "altitude": (0, _INF, False, False),
+    "timestep": (0, 0.02, False, True),
+    "control_rate": (0, _INF, False, False),
+    "camera_rate": (0, _INF, False, False),
+    "move_duration": (0, _INF, False, False),
+    "move_time_limit": (0, _INF, False, False),
+    "arrive_pos_tol": (0, _INF, False, False),
+    "arrive_vel_tol": (0, _INF, False, False),
+    "land_duration": (0, _INF, False, False),
+    "land_speed": (0, _INF, False, False),
+    "land_time_limit": (0, _INF, False, False),
+    "fall_time_limit": (0, _INF, False, False),
+    "max_frame_tilt_deg": (0, 90, False, True),
+    "max_tilt_deg": (0, 180, False, True),
+    "max_tracking_error": (0, _INF, False, False),
+    "unit_margin": (0, 0.5, True, False),
+    "air_density": (0, _INF, False, False),
+    "wind_speed": (0, _INF, True, False),
+    "wind_direction": (-_INF, _INF, False, False),
+    "gust_std": (0, _INF, True, False),
+    "gust_tau": (0, _INF, False, False),
+}
+
+
+def _describe(lo: float, hi: float, lo_closed: bool, hi_closed: bool) -> str:
+    """``"a finite number > 0"``, ``"in [0, 0.5)"``… for error messages."""
+    if hi == _INF and lo == -_INF:
+        return "a finite number"
+    if hi == _INF:
+        return f"a finite number {'>=' if lo_closed else '>'} {lo:g}"
+    return f"in {'[' if lo_closed else '('}{lo:g}, {hi:g}{']' if hi_closed else ')'}"
+
+
+def _check_numbers(obj: object, ranges: dict, prefix: str = "") -> None:
+    """Reject a non-number or an out-of-range value of ``obj``'s fields; store them as floats
+    (so ints and numpy scalars hash and compare like the floats they stand for)."""
+    for name, (lo, hi, lo_closed, hi_closed) in ranges.items():
+        value = getattr(obj, name)
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+            raise ValueError(f"{prefix}{name} must be a number, got {value!r}")
+        number = float(value)
+        if not (
+            math.isfinite(number)
+            and (number >= lo if lo_closed else number > lo)
+            and (number <= hi if hi_closed else number < hi)
+        ):
+            raise ValueError(
+                f"{prefix}{name} must be {_describe(lo, hi, lo_closed, hi_closed)}, got {value!r}"
+            )
+        object.__setattr__(obj, name, number)
+
+
+_POSITIVE, _NON_NEGATIVE = (0, _INF, False, False), (0, _INF, True, False)
+_GAIN_RANGES: dict[str, tuple[float, float, bool, bool]] = {
+    "position_bw": _POSITIVE,
+    "position_damping": _POSITIVE,
+    "position_integral": _NON_NEGATIVE,
+    "integral_limit": _NON_NEGATIVE,
+    "observer_tau": _NON_NEGATIVE,
+    "observer_limit": _NON_NEGATIVE,
+    "attitude_bw": _POSITIVE,
+    "attitude_damping": _POSITIVE,
+    "yaw_bw": _POSITIVE,
+    "tilt_limit_deg": (0, 90, False, False),
+    "feedforward_lead": _NON_NEGATIVE,
+}
+
+
+@dataclass(frozen=True)
+class ControllerGains:
+    """The geometric controller's loop bandwidths; its gains follow from these and the
+    airframe's mass and inertia (``GeometricController``).
+
+    Defaults: position at 2 rad/s and attitude at 12 rad/s keep each loop ≥ 5× slower than the
+    next (attitude vs. the 25 rad/s rotor lag), the usual cascade separation. Set them as
+    ``PhysicsConfig(controller=ControllerGains(position_bw=3))`` or, through ``gymnasium.make``,
+    ``controller={"position_bw": 3}``; they are part of the calibration key, so the budget unit
+    is re-measured with the controller that flies.
+    """
+
+    position_bw: float = 2.0  # rad/s
+    position_damping: float = 0.9
+    position_integral: float = 0.0  # 1/s, integral gain relative to the proportional gain
+    integral_limit: float = 3.0  # N, anti-windup bound of the integral force
+    observer_tau: float = 0.15  # s, low-pass time constant of the external-force observer
+    observer_limit: float = 12.0  # N, bound of the estimated external force (≈ 0.8 weight)
+    attitude_bw: float = 12.0  # rad/s (roll, pitch)
+    attitude_damping: float = 0.8
+    yaw_bw: float = 4.0  # rad/s
+    tilt_limit_deg: float = 45.0  # the commanded force is tilted at most this much
+    feedforward_lead: float = 0.1  # s, reference acceleration taken this far ahead (MinJerk)
+
+    def __post_init__(self) -> None:
+        _check_numbers(self, _GAIN_RANGES, prefix="controller.")
+
+    @classmethod
+    def from_value(cls, value: object) -> ControllerGains:
+        """``value`` as gains: a ``ControllerGains`` or a mapping of some of its fields."""
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, Mapping):
+            names = {f.name for f in fields(cls)}
+            unknown = sorted(str(k) for k in value if k not in names)
+            if unknown:
+                raise ValueError(f"controller: unknown gain(s) {unknown}; known: {sorted(names)}")
+            return cls(**value)
+        raise ValueError(
+            f"controller must be ControllerGains or a dict of its fields, got {value!r}"
+        )
 
 
 @dataclass(frozen=True)
@@ -61,17 +185,34 @@ class PhysicsConfig:
     wind_direction: float = 0.0  # deg, where the wind blows FROM, clockwise from north (0 = north)
     gust_std: float = 0.0  # m/s, standard deviation of each horizontal gust component
     gust_tau: float = 2.0  # s, correlation time of the Ornstein-Uhlenbeck gusts
+    # Dryden turbulence (MIL-F-8785C, low altitude) on top: "none", "light", "moderate",
+    # "severe" (W20 = 15 / 30 / 45 kt); see cpp_mujoco/physics/turbulence.py
+    turbulence: str = "none"
+    # --- the waypoint controller's bandwidths (a dict of some fields is accepted too)
+    controller: ControllerGains = field(default_factory=ControllerGains)
 
     def __post_init__(self) -> None:
-        for name in ("cell_size", "altitude", "timestep", "control_rate", "camera_rate"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
-        if not 0.0 <= self.unit_margin < 0.5:
-            raise ValueError(f"unit_margin must be in [0, 0.5), got {self.unit_margin}")
-        if self.wind_speed < 0 or self.gust_std < 0:
-            raise ValueError("wind_speed and gust_std must be >= 0")
+        """Reject what would fly silently wrong numbers: NaN, inf, bools, strings, a zero
+        ``gust_tau`` (division), a timestep the controller rate cannot be made of."""
+        _check_numbers(self, _RANGES)
+        check_level(self.turbulence, self.altitude)
+        object.__setattr__(self, "controller", ControllerGains.from_value(self.controller))
+        ratio = 1.0 / (self.control_rate * self.timestep)
+        if abs(ratio - round(ratio)) > 1e-6 * ratio or round(ratio) < 1:
+            raise ValueError(
+                f"control_rate ({self.control_rate} Hz) must be a whole number of physics steps "
+                f"of timestep {self.timestep} s (1 / (control_rate * timestep) = {ratio:.6g})"
+            )
         if self.move_time_limit < self.move_duration:
-            raise ValueError("move_time_limit must be at least move_duration")
+            raise ValueError(
+                f"move_time_limit ({self.move_time_limit}) must be at least move_duration "
+                f"({self.move_duration})"
+            )
+        if self.land_time_limit < self.land_duration:
+            raise ValueError(
+                f"land_time_limit ({self.land_time_limit}) must be at least land_duration "
+                f"({self.land_duration})"
+            )
 
     @property
     def substeps(self) -> int:
@@ -89,8 +230,15 @@ class PhysicsConfig:
         return (-self.wind_speed * math.sin(rad), -self.wind_speed * math.cos(rad), 0.0)
 
     def calibration_key(self, extra: str = "") -> str:
-        """Hash of every field that changes a calm-air move (plus ``extra``, e.g. model XML)."""
+        """Hash of every field that changes a calm-air move (plus ``extra``, e.g. model XML).
+
+        Default gains are left out, so a default configuration keeps the key it had before
+        gains were configurable; a change of the defaults themselves reaches the key through
+        ``extra`` (the calibration hashes this module's source).
+        """
         relevant = {k: v for k, v in asdict(self).items() if k not in _NOT_CALIBRATED}
+        if self.controller == ControllerGains():
+            del relevant["controller"]
         text = json.dumps(relevant, sort_keys=True) + extra
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 

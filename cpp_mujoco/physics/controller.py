@@ -14,10 +14,10 @@ roll/pitch > collective thrust > yaw.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from cpp_mujoco.physics.config import ControllerGains
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
 
 GRAVITY = 9.81
@@ -38,10 +38,6 @@ class MinJerk:
         self.delta = tuple(float(e) - s for s, e in zip(self.start, end, strict=True))
         self.duration = float(duration)
         self.lead = float(lead)
-
-    @property
-    def end(self) -> tuple[float, float, float]:
-        return tuple(s + d for s, d in zip(self.start, self.delta, strict=True))
 
     def __call__(self, t: float):
         """(position, velocity, acceleration at t + lead); held at the end after ``duration``."""
@@ -66,39 +62,23 @@ class MinJerk:
         )
 
 
-@dataclass(frozen=True)
-class Gains:
-    """Loop bandwidths; gains are derived from them and the airframe's mass and inertia.
+class GeometricController:
+    """Lee, Leok & McClamroch (2010) on SE(3), in plain floats. Heading held at yaw 0.
 
-    Position at 2 rad/s and attitude at 12 rad/s keep each loop ≥ 5× slower than the next
-    (attitude vs. the 25 rad/s rotor lag), the usual cascade separation.
+    The flight's default :class:`~cpp_mujoco.physics.parts.Controller` part; ``gains`` default
+    to ``ControllerGains()`` (``PhysicsConfig.controller``).
     """
 
-    position_bw: float = 2.0  # rad/s
-    position_damping: float = 0.9
-    position_integral: float = 0.0  # 1/s, integral gain relative to the proportional gain
-    integral_limit: float = 3.0  # N, anti-windup bound of the integral force
-    observer_tau: float = 0.15  # s, low-pass time constant of the external-force observer
-    observer_limit: float = 12.0  # N, bound of the estimated external force (≈ 0.8 weight)
-    attitude_bw: float = 12.0  # rad/s (roll, pitch)
-    attitude_damping: float = 0.8
-    yaw_bw: float = 4.0  # rad/s
-    max_tilt_deg: float = 45.0  # the desired force is tilted at most this much
-    feedforward_lead: float = 0.1  # s, reference acceleration taken this far ahead (MinJerk)
-
-
-class GeometricController:
-    """Lee, Leok & McClamroch (2010) on SE(3), in plain floats. Heading held at yaw 0."""
-
-    def __init__(self, params: QuadrotorParams, gains: Gains | None = None):
-        g = gains or Gains()
+    def __init__(self, params: QuadrotorParams, gains: ControllerGains | None = None):
+        g = gains if gains is not None else ControllerGains()
+        self.gains = g
         m = params.mass
         self.mass = m
         self.kx = m * g.position_bw**2
         self.kv = 2 * g.position_damping * g.position_bw * m
         self.ki = self.kx * g.position_integral
         self.i_limit = g.integral_limit
-        self.tan_tilt = math.tan(math.radians(g.max_tilt_deg))
+        self.tan_tilt = math.tan(math.radians(g.tilt_limit_deg))
         jx, jy, jz = params.inertia
         self.J = (jx, jy, jz)
         self.kR = (jx * g.attitude_bw**2, jy * g.attitude_bw**2, jz * g.yaw_bw**2)

@@ -1,5 +1,9 @@
 """The flight loop: one grid action flown as a macro-step of controller ticks and MuJoCo steps.
 
+Parts: the vehicle is the compiled model; the controller and the wind are swappable
+(:mod:`cpp_mujoco.physics.parts`); the coverage sensor
+(:class:`~cpp_mujoco.physics.camera.CoverageCamera`) and the energy model are the flight's own.
+
 Rates: MuJoCo steps every ``timestep``; the controller, wind, drag, energy and failure checks run
 every ``substeps`` physics steps (``mj_step(..., nstep=k)``); the camera takes a frame at
 ``camera_rate`` plus one at the start and end of every action. Energy is still the exact sum over
@@ -16,15 +20,15 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from cpp_mujoco.grid.coverage import mark_seen
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.arena import GridGeometry
-from cpp_mujoco.physics.camera import cells_in_footprint, corner_rays, footprint
+from cpp_mujoco.physics.camera import CoverageCamera, Polygon
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.controller import GeometricController, MinJerk
 from cpp_mujoco.physics.energy import IntervalEnergy, PowerModel
+from cpp_mujoco.physics.geometry import GridGeometry
+from cpp_mujoco.physics.parts import Controller, WindModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
-from cpp_mujoco.physics.wind import Wind
+from cpp_mujoco.physics.wind import QuadraticDrag, Wind
 
 Reference = Callable[[float], tuple]
 
@@ -54,7 +58,12 @@ def quat_to_mat(w: float, x: float, y: float, z: float) -> tuple[float, ...]:
 
 
 class Flight:
-    """A quadrotor flying over a grid map in a compiled arena model."""
+    """A quadrotor flying over a grid map in a compiled arena model.
+
+    ``coverage``: the (1, H·W) bool row the camera marks (the env passes its MDP's); ``controller``
+    and ``wind``: the parts (:mod:`~cpp_mujoco.physics.parts`), None for the defaults —
+    ``GeometricController(params, config.controller)`` and ``Wind(config, config.control_dt)``.
+    """
 
     def __init__(
         self,
@@ -62,17 +71,22 @@ class Flight:
         grid_map: GridMap,
         config: PhysicsConfig,
         coverage: np.ndarray | None = None,
+        controller: Controller | None = None,
+        wind: WindModel | None = None,
     ):
         self.model, self.config, self.map = model, config, grid_map
         self.data = mujoco.MjData(model)
         self.params = p = QuadrotorParams.from_model(model)
-        self.geo = GridGeometry(*grid_map.shape, config.cell_size)
-        self.controller = GeometricController(p)
-        self.power = PowerModel(p, config.air_density)
+        self.geo = GridGeometry.of(grid_map, config.cell_size)
         self.k = config.substeps
         self.dt = config.control_dt
+        self.controller = (
+            controller if controller is not None else GeometricController(p, config.controller)
+        )
+        self.wind = wind if wind is not None else Wind(config, self.dt)
+        self.drag = QuadraticDrag(config.air_density, p.drag_area)
+        self.power = PowerModel(p, config.air_density)
         self.interval_energy = IntervalEnergy(self.power, config.timestep, p.motor_tau, self.k)
-        self.wind = Wind(config, self.dt, p.drag_area)
 
         frame_body = int(model.body_parentid[p.body_id])
         jnt = int(model.body_jntadr[frame_body])
@@ -83,10 +97,10 @@ class Flight:
         self._qpos, self._qvel = d.qpos[qa : qa + 7], d.qvel[va : va + 6]
         self._ctrl, self._act = d.ctrl, d.act
         self._xfrc = d.xfrc_applied[p.body_id]
-        self.cam_id = int(model.camera("quadrotor/downward").id)
-        self.rays = corner_rays(float(model.cam_fovy[self.cam_id]))
-        self._cam_pos, self._cam_mat = d.cam_xpos[self.cam_id], d.cam_xmat[self.cam_id]
-        self.cruise_z = config.altitude - float(model.cam_pos[self.cam_id][2])
+        target = grid_map.target.reshape(-1)
+        self.coverage = coverage if coverage is not None else np.zeros((1, target.size), bool)
+        self.camera = CoverageCamera(model, d, self.geo, config, target, self.coverage)
+        self.cruise_z = config.altitude - float(model.cam_pos[self.camera.cam_id][2])
         self.ground_id = int(model.geom("ground").id)
         quad_geoms = np.flatnonzero(model.body_rootid[model.geom_bodyid] == frame_body)
         gear = [model.geom(f"quadrotor/skid_{s}").id for s in "lr"]
@@ -95,15 +109,8 @@ class Flight:
         self.touch_z = -min(
             float(model.geom_pos[g][2]) - float(model.geom_size[g][0]) for g in self.gear_geoms
         )
-        self._seen = np.zeros((1, grid_map.target.size), dtype=bool)
-        self.target = grid_map.target.reshape(-1)
         self.no_fly = grid_map.nfz.reshape(-1).tolist()
-        self.coverage = coverage if coverage is not None else np.zeros((1, self.target.size), bool)
         self.cos_flip = math.cos(math.radians(config.max_tilt_deg))
-        self.cos_frame_tilt = math.cos(math.radians(config.max_frame_tilt_deg))
-        fovy = math.radians(float(model.cam_fovy[self.cam_id]))
-        self.nominal_half = config.altitude * math.tan(fovy / 2) + 1e-6  # level footprint, m
-        self._centers = [tuple(c) for c in self.geo.centers().tolist()]
         hx, hy = self.geo.half_extent
         self.bounds = (hx + config.cell_size, hy + config.cell_size, 3 * config.altitude + 5)
         self._warn_badqacc = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
@@ -131,9 +138,7 @@ class Flight:
         self.energy_used = 0.0
         self.motors_on = True
         self.nfz_violations = 0
-        self.next_frame = 0.0
-        self.frames = 0
-        self.last_footprint: np.ndarray | None = None
+        self.camera.reset()
         self.coverage[:] = False
         self._bad0 = self._warn_badqacc.number
 
@@ -144,6 +149,11 @@ class Flight:
     @property
     def position(self) -> np.ndarray:
         return self._qpos[:3].copy()
+
+    @property
+    def last_footprint(self) -> Polygon | None:
+        """Ground corners of the latest camera frame (None: the horizon was in view)."""
+        return self.camera.last_footprint
 
     def waypoint(self, cell: int) -> tuple[float, float, float]:
         row, col = divmod(int(cell), self.geo.width)
@@ -186,9 +196,9 @@ class Flight:
         out.newly_seen += self.frame()
         m, d, k, dt = self.model, self.data, self.k, self.dt
         qpos, qvel, ctrl, act, xfrc = self._qpos, self._qvel, self._ctrl, self._act, self._xfrc
-        controller, wind, energy_of = self.controller, self.wind, self.interval_energy
-        geo_h2, geo_w2, inv_cs = self.geo.height / 2, self.geo.width / 2, 1 / self.config.cell_size
-        height, width, no_fly = self.geo.height, self.geo.width, self.no_fly
+        controller, energy_of = self.controller, self.interval_energy
+        wind, drag = self.wind.velocity, self.drag.force
+        cell_index, no_fly, camera = self.geo.cell_index, self.no_fly, self.camera
         bx, by, bz = self.bounds
         pos_tol2, vel_tol2 = self.config.arrive_pos_tol**2, self.config.arrive_vel_tol**2
         max_err2 = self.config.max_tracking_error**2
@@ -211,9 +221,8 @@ class Flight:
             elif R[8] < cos_flip and self.motors_on:
                 failure = "flipped over"
             # no-fly airspace: the body's xy inside a no-fly cell (outside the grid counts)
-            r = math.floor(geo_h2 - pos[1] * inv_cs)
-            c = math.floor(pos[0] * inv_cs + geo_w2)
-            if not (0 <= r < height and 0 <= c < width) or no_fly[r * width + c]:
+            cell = cell_index(pos[0], pos[1])
+            if cell is None or no_fly[cell]:
                 self.nfz_violations += k
             p_ref, v_ref, a_ref = ref(t)
             if failure is None and self.motors_on:
@@ -223,7 +232,7 @@ class Flight:
             if failure is not None:
                 out.failure = failure
                 break
-            if t0 + t >= self.next_frame:
+            if t0 + t >= camera.next_frame:
                 out.newly_seen += self.frame()
             # ---- done?
             if not self.motors_on:
@@ -266,8 +275,7 @@ class Flight:
             else:
                 f = zero
             ctrl[:] = f
-            w = wind.velocity()
-            xfrc[:3] = wind.drag(vel, w)
+            xfrc[:3] = drag(vel, wind(d.time, pos))
             step(m, d, k)
             t += dt
         out.newly_seen += self.frame()
@@ -301,32 +309,9 @@ class Flight:
 
     # ------------------------------------------------------------------ camera
     def frame(self) -> int:
-        """Take a camera frame: mark the target cells whose centres lie in the footprint and in
-        the nominal footprint around the nadir point (see ``PhysicsConfig``)."""
-        self.next_frame = float(self.data.time) + 1.0 / self.config.camera_rate
-        self.frames += 1
-        cam_mat = self._cam_mat.tolist()
-        poly = footprint(self._cam_pos.tolist(), cam_mat, self.rays)
-        self.last_footprint = poly
-        newly = 0
-        cells = []
-        if poly is not None and cam_mat[8] >= self.cos_frame_tilt:  # camera −z vs world −z
-            x, y, half, centers = (
-                self._cam_pos[0],
-                self._cam_pos[1],
-                self.nominal_half,
-                self._centers,
-            )
-            cells = [
-                c
-                for c in cells_in_footprint(poly, self.geo)
-                if abs(centers[c][0] - x) <= half and abs(centers[c][1] - y) <= half
-            ]
-        if cells:
-            seen = self._seen
-            seen[:] = False
-            seen[0, cells] = True
-            newly = int(mark_seen(self.coverage, seen, self.target)[0])
+        """Take a coverage frame now (:meth:`CoverageCamera.capture`), then call :attr:`on_frame`;
+        return how many target cells it saw first."""
+        newly = self.camera.capture(float(self.data.time))
         if self.on_frame is not None:
             self.on_frame(self)
         return newly

@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from cpp_mujoco.grid.actions import LAND
+from cpp_mujoco.grid.graph import MapGraph, graph_from_observation
 from cpp_mujoco.grid.mdp import GridConfig
-from cpp_mujoco.grid.safety import LAND
-from cpp_mujoco.planners.graph import MapGraph, graph_from_observation
+from cpp_mujoco.planners.rollout import decode_observation, rollout
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
-from cpp_mujoco.planners.state import decode_observation, rollout
 
 _MIX = np.uint64(0x9E3779B97F4A7C15)
 
@@ -48,16 +48,38 @@ def _group_rank(group: np.ndarray, keys: tuple[np.ndarray, ...]) -> np.ndarray:
     return rank
 
 
+_CHUNK_BYTES = 64 << 20  # rough bound on one chunk's beam of packed coverage
+
+
 def plan_paths(
     g: MapGraph, pos: np.ndarray, budget: np.ndarray, coverage: np.ndarray, width: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Best landed action sequence per episode: (actions (k, T) padded with LAND, lengths (k,))."""
+    """Best landed action sequence per episode: (actions (k, T) padded with LAND, lengths (k,)).
+
+    Episodes are searched independently, so they are planned in chunks whose beams (each row
+    a packed coverage bitset of the map) fit in ``_CHUNK_BYTES``; results do not depend on it.
+    """
+    words = -(-g.num_cells // 64)
+    chunk = max(1, _CHUNK_BYTES // (4 * LAND * width * words * 8))  # ~4 copies of 4·width rows
+    if pos.size <= chunk:
+        return _plan_chunk(g, pos, budget, coverage, width)
+    parts = [
+        _plan_chunk(g, pos[i : i + chunk], budget[i : i + chunk], coverage[i : i + chunk], width)
+        for i in range(0, pos.size, chunk)
+    ]
+    steps = max(a.shape[1] for a, _ in parts)
+    actions = [np.pad(a, ((0, 0), (0, steps - a.shape[1])), constant_values=LAND) for a, _ in parts]
+    return np.concatenate(actions), np.concatenate([n for _, n in parts])
+
+
+def _plan_chunk(
+    g: MapGraph, pos: np.ndarray, budget: np.ndarray, coverage: np.ndarray, width: int
+) -> tuple[np.ndarray, np.ndarray]:
     k = pos.size
-    fov_bits = _pack(g.fov_targets)
+    fov_bits = g.fov_target_bits
     target = g.grid_map.target.reshape(-1)
     lands = g.safety.accepted[:, LAND]
-    sees_targets = g.fov_targets.any(axis=1)
-    toward_targets = g.distance[:, sees_targets].min(axis=1)
+    toward_targets = g.toward_targets
     # the beam: one row per partial path
     ep = np.arange(k)
     cur = pos.copy()
@@ -140,6 +162,12 @@ class BeamSearchPlanner:
         self._plans: np.ndarray | None = None  # (N, T) actions
         self._pos: np.ndarray | None = None  # (N, T) expected position before each action
         self._budget: np.ndarray | None = None  # (N, T) expected budget before each action
+        self._cursor = np.zeros(0, dtype=np.int64)
+        self._length = np.zeros(0, dtype=np.int64)
+
+    def reset(self, num_episodes: int, seed: int | None = None) -> None:
+        """New episodes start: drop every plan (a finished plan would otherwise land at once)."""
+        self._plans = self._pos = self._budget = None
         self._cursor = np.zeros(0, dtype=np.int64)
         self._length = np.zeros(0, dtype=np.int64)
 

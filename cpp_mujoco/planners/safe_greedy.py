@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from cpp_mujoco.grid.safety import LAND
-from cpp_mujoco.planners.graph import graph_from_observation
-from cpp_mujoco.planners.state import decode_observation
+from cpp_mujoco.grid.actions import LAND
+from cpp_mujoco.grid.graph import MapGraph, graph_from_observation
+from cpp_mujoco.planners.rollout import decode_observation
+
+_CHUNK_ELEMENTS = 1 << 21  # episodes × cells decided at once: bounds the (N, H·W) temporaries
 
 
 class SafeGreedyPlanner:
@@ -24,10 +26,23 @@ class SafeGreedyPlanner:
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         g = graph_from_observation(obs, self.fov_side)
         pos, budget, coverage = decode_observation(obs)
+        chunk = max(1, _CHUNK_ELEMENTS // g.num_cells)
+        if pos.size <= chunk:
+            return self._decide(g, pos, budget, coverage)
+        return np.concatenate(
+            [
+                self._decide(g, pos[i : i + chunk], budget[i : i + chunk], coverage[i : i + chunk])
+                for i in range(0, pos.size, chunk)
+            ]
+        )
+
+    @staticmethod
+    def _decide(g: MapGraph, pos, budget, coverage) -> np.ndarray:
+        """Each episode's action; episodes are independent, so any chunking decides the same."""
         rows = np.arange(pos.size)
-        unseen = (~coverage & g.grid_map.target.reshape(-1)).astype(np.float32)
-        gain = unseen @ g.fov_targets.T.astype(np.float32)  # new targets seen from each cell
-        dist = g.distance[pos]
+        unseen = ~coverage & g.grid_map.target.reshape(-1)
+        gain = g.new_targets_seen(unseen)  # new targets seen from each cell
+        dist = g.distance_from(pos)
         reachable = (dist > 0) & (dist + g.home[None, :] <= budget[:, None]) & (gain > 0)
         score = np.where(reachable, gain / np.maximum(dist, 1), -1.0)
         goal = score.argmax(axis=1)
@@ -35,8 +50,9 @@ class SafeGreedyPlanner:
 
         neighbours = g.safety.next_cell[pos, :LAND]
         moves_ok = g.safety.accepted[pos, :LAND]
+        # d(neighbour, goal) = d(goal, neighbour): neither is no-fly where has_goal (MapGraph)
         toward_goal = moves_ok & (
-            g.distance[neighbours, goal[:, None]] == dist[rows, goal][:, None] - 1
+            g.distance_between(goal, neighbours) == dist[rows, goal][:, None] - 1
         )
         goal_move = np.where(toward_goal, gain[rows[:, None], neighbours] + 1, 0).argmax(axis=1)
         toward_home = moves_ok & (g.home[neighbours] == g.home[pos][:, None] - 1)

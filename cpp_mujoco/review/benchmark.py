@@ -51,3 +51,11 @@ def benchmark_review(map_name: str = "B", budget: int = 40, frames: int = 200) -
         "recording_mb": size_mb,
         "mission_actions": plain.steps,
     }
+
+
+def run() -> dict:
+    """The ``review`` section as ``cpp-mujoco benchmark`` runs it (the GL backend chosen first)."""
+    from cpp_mujoco.review.rendering import configure_gl
+
+    configure_gl()
+    return benchmark_review()

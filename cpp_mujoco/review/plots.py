@@ -1,5 +1,9 @@
 """Paper-style figures with matplotlib: maps (Fig. 2 colours), coverage vs budget (Fig. 3),
-trajectories drawn over the map (Fig. 2)."""
+trajectories drawn over the map (Fig. 2), and the wind sweep of the transfer study.
+
+Figures are standalone ``matplotlib.figure.Figure`` objects saved to files: no pyplot, no global
+backend switch, so drawing here never changes the backend of the program that imports it.
+"""
 
 from __future__ import annotations
 
@@ -7,27 +11,29 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 
-matplotlib.use("Agg")  # files only: no display needed
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from cpp_mujoco.evaluate import EvaluationResult  # noqa: E402
-from cpp_mujoco.grid.coverage import square_fov_masks  # noqa: E402
-from cpp_mujoco.maps import GridMap, load_map  # noqa: E402
-from cpp_mujoco.review.grid_image import zone_colors  # noqa: E402
+from cpp_mujoco.evaluate import EvaluationResult
+from cpp_mujoco.grid.coverage import square_fov_union
+from cpp_mujoco.io import atomic_path
+from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.review.grid_image import zone_colors
 
 
-def _save(fig, path: str | os.PathLike) -> Path:
-    """Save atomically (a crash never leaves a half-written figure)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+def _save(fig: Figure, path: str | os.PathLike) -> Path:
+    """Save atomically: a crash or a full disk never leaves a half-written figure, and a failed
+    write is a one-line :class:`~cpp_mujoco.io.WriteError`."""
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight")
+    return Path(path)
+
+
+def result_map(result: EvaluationResult) -> GridMap:
+    """The map a result was evaluated on (results before ``grid_map`` existed: by name)."""
+    grid_map = getattr(result, "grid_map", None)
+    return grid_map if grid_map is not None else load_map(result.map_name)
 
 
 def draw_map(ax, grid_map: GridMap, seen: np.ndarray | None = None) -> None:
@@ -46,11 +52,12 @@ def draw_map(ax, grid_map: GridMap, seen: np.ndarray | None = None) -> None:
 
 def map_figure(map_name: str | GridMap, path: str | os.PathLike) -> Path:
     grid_map = load_map(map_name)
-    fig, ax = plt.subplots(figsize=(4, 4))
+    fig = Figure(figsize=(4, 4))
+    ax = fig.subplots()
     draw_map(ax, grid_map)
     counts = grid_map.counts()
     ax.set_title(
-        f"map {grid_map.name}: {counts['landing']} landing, {counts['target']} target, "
+        f"map {grid_map.label}: {counts['landing']} landing, {counts['target']} target, "
         f"{counts['nfz']} no-fly",
         fontsize=9,
     )
@@ -60,8 +67,7 @@ def map_figure(map_name: str | GridMap, path: str | os.PathLike) -> Path:
 def draw_trajectory(ax, grid_map: GridMap, cells: np.ndarray, fov_side: int = 3) -> None:
     """One episode: seen cells lightened, arrows along the path, start yellow, end white."""
     cells = cells[cells >= 0]
-    fov = square_fov_masks(grid_map, fov_side)
-    seen = fov[cells[1:]].any(axis=0) if cells.size > 1 else np.zeros(grid_map.landing.size, bool)
+    seen = square_fov_union(grid_map.shape, fov_side, cells[1:])
     draw_map(ax, grid_map, seen)
     rows, cols = np.divmod(cells, grid_map.shape[1])
     for (r0, c0), (r1, c1) in zip(
@@ -71,10 +77,8 @@ def draw_trajectory(ax, grid_map: GridMap, cells: np.ndarray, fov_side: int = 3)
             ax.annotate(
                 "", (c1, r1), (c0, r0), arrowprops={"arrowstyle": "->", "color": "red", "lw": 1.2}
             )
-    ax.add_patch(plt.Rectangle((cols[0] - 0.5, rows[0] - 0.5), 1, 1, color="yellow", alpha=0.9))
-    ax.add_patch(
-        plt.Rectangle((cols[-1] - 0.5, rows[-1] - 0.5), 1, 1, fill=False, ec="white", lw=2)
-    )
+    ax.add_patch(Rectangle((cols[0] - 0.5, rows[0] - 0.5), 1, 1, color="yellow", alpha=0.9))
+    ax.add_patch(Rectangle((cols[-1] - 0.5, rows[-1] - 0.5), 1, 1, fill=False, ec="white", lw=2))
 
 
 def trajectories_figure(
@@ -84,13 +88,14 @@ def trajectories_figure(
     start: tuple[int, int] | None = None,
 ) -> Path:
     """The paper's Fig. 2: one start, three budgets (default: low, middle, high)."""
-    grid_map = load_map(result.map_name) if isinstance(result.map_name, str) else result.map_name
+    grid_map = result_map(result)
     available = np.unique(result.budgets)
     if budgets is None:
         budgets = [int(available[0]), int(available[len(available) // 2]), int(available[-1])]
     if start is None:
         start = tuple(int(v) for v in result.starts[0])
-    fig, axes = plt.subplots(1, len(budgets), figsize=(4 * len(budgets), 4.2))
+    fig = Figure(figsize=(4 * len(budgets), 4.2))
+    axes = fig.subplots(1, len(budgets))
     for ax, budget in zip(np.atleast_1d(axes), budgets, strict=True):
         sel = np.flatnonzero((result.budgets == budget) & (result.starts == start).all(axis=1))
         if sel.size == 0:
@@ -108,7 +113,8 @@ def trajectories_figure(
 
 def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike) -> Path:
     """The paper's Fig. 3: mean coverage ratio per budget, one line per policy, with the bound."""
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
     for result in results:
         table = result.per_budget
         ax.plot(
@@ -130,4 +136,27 @@ def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike
     ax.set_title(f"map {results[0].map_name} ({results[0].backend})")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def wind_sweep_figure(
+    results: Sequence[EvaluationResult], path: str | os.PathLike, gust_std: float
+) -> Path:
+    """Landing and coverage ratio against the steady wind, one line per map (MuJoCo results,
+    each flown in one wind; the wind is read from the result's conditions)."""
+    from cpp_mujoco.review.results import wind_speed
+
+    fig = Figure(figsize=(10, 4))
+    axes = fig.subplots(1, 2)
+    for label in dict.fromkeys(r.map_name for r in results):
+        entries = sorted((r for r in results if r.map_name == label), key=wind_speed)
+        winds = [wind_speed(r) for r in entries]
+        axes[0].plot(winds, [r.landing_ratio for r in entries], "o-", label=f"map {label}")
+        axes[1].plot(winds, [r.coverage_ratio for r in entries], "o-", label=f"map {label}")
+    for ax, name in zip(axes, ("landing ratio", "coverage ratio"), strict=True):
+        ax.set_xlabel(f"steady wind, m/s (gusts σ = {gust_std:.1f} m/s)")
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.suptitle("Grid-trained agents in MuJoCo under wind")
     return _save(fig, path)

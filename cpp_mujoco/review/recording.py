@@ -5,35 +5,45 @@ pose and trajectory, the camera footprint on the ground, the coverage grid over 
 onboard camera frames, and energy / budget / reward / coverage as time series — on a ``sim_time``
 timeline and a ``step`` timeline (one tick per grid action), laid out by a blueprint.
 
-The file is written as the mission goes (and flushed every step), so an interrupted run still
-leaves a readable recording of what happened until then.
+The file is written as the mission goes, in chunks of a few seconds of wall time (one chunk per
+entity per flush: flushing every step made a mission ~1,000 tiny chunks). Closing it — also on
+Ctrl-C or SIGTERM (:mod:`cpp_mujoco.signals`) — writes the footer ``rerun rrd verify`` wants; a
+recording cut by SIGKILL keeps what was flushed and can be repaired (see the README).
+Each recording has its own random recording id, so two opened together stay two recordings.
 """
 
 from __future__ import annotations
 
 import os
+import time
+import uuid
+from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from cpp_mujoco.grid.safety import ACTION_NAMES
+from cpp_mujoco.grid.actions import ACTION_NAMES
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.review.grid_image import grid_image, zone_colors
 
 NFZ_RGBA = (255, 30, 30, 60)
 FOOTPRINT_RGBA = (255, 220, 0, 255)
 TRAJECTORY_RGBA = (255, 40, 40, 255)
 METRICS = ("energy_j", "budget", "reward", "return", "coverage_ratio")
+APPLICATION_ID = "cpp_mujoco"
+FLUSH_SECONDS = 5.0  # wall time between flushes: about what a SIGKILL loses of a mission
 
 
-def cell_centers(grid_map: GridMap, cell_size: float) -> np.ndarray:
-    """(H, W, 2) world xy of each cell centre: x east, y north, the map centred on the origin
-    (the physics arena's convention)."""
-    h, w = grid_map.shape
-    rows, cols = np.mgrid[0:h, 0:w]
-    return np.stack([(cols + 0.5 - w / 2) * cell_size, (h / 2 - rows - 0.5) * cell_size], -1)
+def batcher_config(flush_seconds: float = FLUSH_SECONDS) -> rr.ChunkBatcherConfig:
+    """Flush on time only (byte and row thresholds far above one mission's data)."""
+    return rr.ChunkBatcherConfig(
+        flush_tick=timedelta(seconds=flush_seconds),
+        flush_num_bytes=256 * 2**20,
+        flush_num_rows=2**40,
+    )
 
 
 def blueprint() -> rrb.Blueprint:
@@ -56,7 +66,9 @@ def blueprint() -> rrb.Blueprint:
 
 class MissionRecorder:
     """Writes one mission to ``path``. Call :meth:`log_pose` at the camera rate,
-    :meth:`log_camera` for onboard frames, :meth:`log_step` after every grid action."""
+    :meth:`log_camera` for onboard frames, :meth:`log_step` after every grid action.
+    ``properties`` (policy, backend, conditions) are stored with the map's identity as the
+    recording's ``mission`` property."""
 
     def __init__(
         self,
@@ -65,16 +77,31 @@ class MissionRecorder:
         cell_size: float = 4.0,
         altitude: float = 6.0,
         name: str = "mission",
+        flush_seconds: float | None = None,
+        properties: dict[str, object] | None = None,
     ):
         self.path = Path(path)
-        try:
+        if self.path.is_dir():
+            raise OSError(f"cannot write recording {self.path}: it is a folder")
+        try:  # streamed, not atomic: a cut run keeps what was flushed (see the module doc)
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self.path.touch()
         except OSError as e:
             raise OSError(f"cannot write recording {self.path}: {e.strerror}") from e
         self.map, self.cell_size, self.altitude = grid_map, cell_size, altitude
-        self.rec = rr.RecordingStream("cpp_mujoco", recording_id=name)
+        self.recording_id = str(uuid.uuid4())
+        self.flush_seconds = flush_seconds or FLUSH_SECONDS
+        self.rec = rr.RecordingStream(
+            APPLICATION_ID,
+            recording_id=self.recording_id,
+            batcher_config=batcher_config(self.flush_seconds),
+        )
         self.rec.save(str(self.path))
+        self.rec.send_recording_name(f"{name} on map {grid_map.label}")
+        identity = {k: v for k, v in grid_map.identity().items() if k != "map_shape"}
+        mission = {**identity, **(properties or {})}  # what decided the numbers shown
+        self.rec.send_property("mission", rr.AnyValues(**{k: str(v) for k, v in mission.items()}))
+        self._flushed = time.monotonic()
         self.rec.send_blueprint(blueprint())
         self.trajectory: list[np.ndarray] = []
         self.step = 0
@@ -84,7 +111,7 @@ class MissionRecorder:
     # ------------------------------------------------------------------ static scene
     def _log_scene(self) -> None:
         m, cs = self.map, self.cell_size
-        centers = cell_centers(m, cs).reshape(-1, 2)
+        centers = GridGeometry.of(m, cs).centers()  # the arena's cells, row-major
         colors = zone_colors(m).reshape(-1, 3)
         n = centers.shape[0]
         self.rec.log(
@@ -192,8 +219,21 @@ class MissionRecorder:
         if info.get("crashed"):
             text += f", CRASHED ({info.get('crash_reason') or 'budget exhausted'})"
         self.rec.log("events", rr.TextLog(text, level="WARN" if info.get("crashed") else "INFO"))
-        self.rec.flush()
+        if time.monotonic() - self._flushed >= self.flush_seconds:
+            self.rec.flush()  # to disk now: the batcher's own tick may wait much longer
+            self._flushed = time.monotonic()
 
-    def close(self) -> None:
+    def close(self, interrupted: str | None = None) -> Path:
+        """Flush and write the footer. ``interrupted``: why the mission stopped early; logged as
+        the last event, so the recording says it is not the whole mission."""
+        if interrupted:
+            self.rec.set_time("step", sequence=self.step)
+            self.rec.log(
+                "events",
+                rr.TextLog(
+                    f"mission interrupted ({interrupted}); recording ends here", level="ERROR"
+                ),
+            )
         self.rec.flush()
         self.rec.disconnect()
+        return self.path

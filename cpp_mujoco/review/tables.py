@@ -1,12 +1,28 @@
-"""Plain-text tables for the terminal."""
+"""The one table renderer: the same cells as a plain terminal table or as Markdown.
+
+Every table the project prints or writes goes through :func:`format_table`, so a number shown in
+the terminal and the same number in a ``.md`` file are one string, formatted once.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
+STYLES = ("plain", "markdown")
 
-def format_table(rows: Sequence[dict], columns: Sequence[str], floats: str = "{:.4f}") -> str:
-    """Left-aligned columns, a header and a rule; floats formatted with ``floats``."""
+
+def format_table(
+    rows: Sequence[dict],
+    columns: Sequence[str],
+    floats: str = "{:.4f}",
+    style: str = "plain",
+) -> str:
+    """``columns`` of ``rows`` (a missing cell is blank; floats formatted with ``floats``).
+
+    ``plain``: left-aligned columns, a header and a rule. ``markdown``: a pipe table.
+    """
+    if style not in STYLES:
+        raise ValueError(f"unknown table style {style!r}; available: {', '.join(STYLES)}")
 
     def cell(value) -> str:
         if isinstance(value, float):
@@ -14,6 +30,10 @@ def format_table(rows: Sequence[dict], columns: Sequence[str], floats: str = "{:
         return str(value)
 
     body = [[cell(row.get(c, "")) for c in columns] for row in rows]
+    if style == "markdown":
+        lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+        lines += ["| " + " | ".join(r) + " |" for r in body]
+        return "\n".join(lines)
     widths = [
         max(len(c), *(len(r[i]) for r in body)) if body else len(c) for i, c in enumerate(columns)
     ]

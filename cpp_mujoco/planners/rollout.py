@@ -1,11 +1,13 @@
-"""Reading the MDP state back out of a batched observation."""
+"""Simulating ahead from an observation: read the MDP state back out of a batched observation,
+and play a policy from such states to the end in a scratch :class:`GridMDP`."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from cpp_mujoco.episode import run_batch
+from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
-from cpp_mujoco.grid.safety import LAND
 from cpp_mujoco.maps import GridMap
 
 
@@ -27,18 +29,15 @@ def rollout(
     coverage: np.ndarray,
     config: GridConfig | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Play ``policy`` from the given states to the end in a scratch :class:`GridMDP`.
+    """Play ``policy`` from the given states to the end (an episode start for the policy: a
+    planner used as the incumbent starts afresh each time).
 
     Returns (actions (k, T) padded with LAND, target cells seen at the end (k,), actions taken
     (k,)).
     """
     mdp = GridMDP(grid_map, pos.size, config)
     mdp.restore(pos, budget, coverage)
-    taken = []
-    while not mdp.done.all():
-        active = ~mdp.done
-        actions = np.where(active, policy.act(mdp.observation()), LAND)
-        mdp.step(actions, active=active)
-        taken.append(actions)
+    taken: list[np.ndarray] = []
+    run_batch(mdp, policy, on_step=lambda obs, actions, out, active: taken.append(actions))
     actions = np.stack(taken, axis=1) if taken else np.full((pos.size, 1), LAND)
     return actions, mdp.seen_targets.copy(), mdp.steps.copy()

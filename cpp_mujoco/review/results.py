@@ -1,0 +1,292 @@
+"""Results tables: the row builders, the evaluation run behind them, and their JSON.
+
+The ``evaluate`` command, the demo and the scripts (``results.py``, ``transfer.py``) build every
+results table here and render it with :func:`~cpp_mujoco.review.tables.format_table`, so a
+number has one format and one label wherever it is shown. Each row carries its map's label (a
+user's ``A.png`` is ``A-<digest>``, never map A) and digest, the policy, the backend, the raw
+numbers beside the shown cells, and the conditions of its results. A table's JSON states the
+conditions all its rows share once, and in each row only what differs (a wind speed, budgets).
+
+Imports stay light at module level: the CLI imports this only inside its commands anyway, and
+the scripts pay for what they use.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from dataclasses import asdict, dataclass, field, is_dataclass
+from pathlib import Path
+from typing import Any
+
+from cpp_mujoco.io import atomic_write_text
+from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.review.tables import format_table
+
+PROTOCOL_COLUMNS = ["map", "policy", "episodes", "landing", "coverage", "paper landing", "seconds"]
+DEMO_GRID_COLUMNS = ["map", "policy", "landing", "coverage", "paper landing"]
+TRANSFER_COLUMNS = [
+    "map", "policy", "episodes", "grid landing", "mujoco landing", "grid coverage",
+    "mujoco coverage", "J/action", "nfz viol.",
+]  # fmt: skip
+WIND_COLUMNS = [
+    "map", "policy", "wind m/s", "landing", "coverage", "J/action", "crashes", "nfz viol."
+]  # fmt: skip
+PAPER_COLUMNS = [
+    "map", "landing", "paper landing", "coverage", "safe greedy", "beam search", "bar met"
+]  # fmt: skip
+_IDENTITY = ("map", "map_source", "map_bundled", "map_digest", "map_shape")
+
+
+def file_part(name: str) -> str:
+    """A policy or map name as a file-name part (``ddqn[runs/x.pt]`` → ``ddqn_runs_x.pt``)."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_")
+
+
+def paper_landing(grid_map: GridMap) -> float | None:
+    """The paper's landing ratio, only beside the bundled map it was measured on."""
+    from cpp_mujoco.evaluate import PAPER_LANDING_RATIO
+
+    return PAPER_LANDING_RATIO.get(grid_map.name) if grid_map.bundled else None
+
+
+def demo_policies(map: str | GridMap) -> list[tuple[str, object]]:  # noqa: A002
+    """The policies the demo and the transfer tables compare: a bundled map's bundled agent
+    (where there is one), then the safe greedy planner."""
+    from cpp_mujoco.agent import bundled_agents, load_agent
+    from cpp_mujoco.planners import SafeGreedyPlanner
+
+    grid_map = load_map(map)
+    policies: list[tuple[str, object]] = []
+    if grid_map.bundled and grid_map.name in bundled_agents():
+        policies.append((f"ddqn[{grid_map.name}]", load_agent(grid_map.name)))
+    policies.append(("safe-greedy", SafeGreedyPlanner()))
+    return policies
+
+
+# ------------------------------------------------------------------------------- row builders
+def _pct(ratio: float) -> str:
+    return f"{ratio:.2%}"
+
+
+def _numbers(result) -> dict[str, Any]:
+    """The result's headline numbers, unrounded (identity and conditions are kept elsewhere)."""
+    drop = {*_IDENTITY, "policy", "backend", "conditions"}
+    return {k: v for k, v in result.summary().items() if k not in drop}
+
+
+def _row(result, cells: dict, values: Any, conditions: Any, backend: str | None = None) -> dict:
+    return {
+        "map": result.map_name,
+        "policy": result.policy_name,
+        **cells,
+        "backend": backend or result.backend,
+        "map_digest": result.grid_map.digest,
+        "values": values,
+        "conditions": conditions,
+    }
+
+
+def _same_episodes(*results) -> None:
+    """Rows that compare results must compare like with like, or the row is wrong silently."""
+    first = results[0]
+    for other in results[1:]:
+        if other.grid_map.digest != first.grid_map.digest:
+            raise ValueError(f"results of maps {first.map_name!r} and {other.map_name!r} compared")
+        if sorted(set(other.budgets.tolist())) != sorted(set(first.budgets.tolist())):
+            raise ValueError(f"results over different budgets compared on map {first.map_name!r}")
+
+
+def protocol_row(result, seconds: float | None = None) -> dict:
+    """One policy's protocol on one map (either backend); ``seconds``: its wall time."""
+    paper = paper_landing(result.grid_map)
+    cells = {
+        "episodes": int(result.landed.size),
+        "landing": _pct(result.landing_ratio),
+        "coverage": _pct(result.coverage_ratio),
+        "paper landing": _pct(paper) if paper else "-",
+    }
+    if seconds is not None:
+        cells["seconds"] = f"{seconds:.2f}"
+    return _row(result, cells, _numbers(result), result.conditions)
+
+
+def transfer_row(grid, physics) -> dict:
+    """The same policy, map and episodes on the grid and flown in MuJoCo."""
+    _same_episodes(grid, physics)
+    if grid.policy_name != physics.policy_name:
+        raise ValueError(f"policies {grid.policy_name!r} and {physics.policy_name!r} compared")
+    s = physics.summary()
+    cells = {
+        "episodes": int(physics.landed.size),
+        "grid landing": _pct(grid.landing_ratio),
+        "mujoco landing": _pct(physics.landing_ratio),
+        "grid coverage": _pct(grid.coverage_ratio),
+        "mujoco coverage": _pct(physics.coverage_ratio),
+        "J/action": f"{s['energy_per_action_j']:.0f}",
+        "nfz viol.": s["nfz_violations"],
+    }
+    values = {grid.backend: _numbers(grid), physics.backend: _numbers(physics)}
+    conditions = {grid.backend: grid.conditions, physics.backend: physics.conditions}
+    return _row(grid, cells, values, conditions, backend=f"{grid.backend} vs {physics.backend}")
+
+
+def wind_speed(result) -> float:
+    """The steady wind a MuJoCo result was flown in (0 on the grid)."""
+    physics = result.conditions.get("physics_config") or {}
+    env_kwargs = result.conditions.get("env_kwargs") or {}
+    return float(physics.get("wind_speed", env_kwargs.get("wind_speed", 0.0)))
+
+
+def wind_row(result) -> dict:
+    """One policy flown in MuJoCo under one wind (the wind sweep)."""
+    s = result.summary()
+    cells = {
+        "wind m/s": f"{wind_speed(result):.1f}",
+        "landing": _pct(s["landing_ratio"]),
+        "coverage": _pct(s["coverage_ratio"]),
+        "J/action": f"{s['energy_per_action_j']:.0f}",
+        "crashes": s["crashes"],
+        "nfz viol.": s["nfz_violations"],
+    }
+    return _row(result, cells, _numbers(result), result.conditions)
+
+
+def paper_row(agent, greedy, beam) -> dict:
+    """The paper's comparison on a bundled map: the agent's landing ratio against the paper's,
+    its coverage against the safe greedy and beam-search planners; the bar is both met."""
+    _same_episodes(agent, greedy, beam)
+    paper = paper_landing(agent.grid_map)
+    if paper is None:
+        raise ValueError(f"map {agent.map_name!r} is not bundled; the paper has no figure for it")
+    crashes = int((~agent.landed).sum())
+    met = agent.landing_ratio >= paper and agent.coverage_ratio >= greedy.coverage_ratio
+    cells = {
+        "landing": f"{_pct(agent.landing_ratio)} ({crashes} of {agent.landed.size} crash)",
+        "paper landing": _pct(paper),
+        "coverage": _pct(agent.coverage_ratio),
+        "safe greedy": _pct(greedy.coverage_ratio),
+        "beam search": _pct(beam.coverage_ratio),
+        "bar met": "yes" if met else "no",
+    }
+    values = {r.policy_name: _numbers(r) for r in (agent, greedy, beam)}
+    values["paper_landing_ratio"] = paper
+    return _row(agent, cells, values, agent.conditions)
+
+
+# ------------------------------------------------------------------------------------- tables
+def _json_default(value: Any) -> Any:
+    import numpy as np
+
+    if isinstance(value, np.generic | np.ndarray):
+        return value.tolist()
+    if is_dataclass(value) and not isinstance(value, type):
+        return asdict(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def _plain(value: Any) -> Any:
+    return json.loads(json.dumps(value, default=_json_default))
+
+
+def split_conditions(conditions: list[dict]) -> tuple[dict, list[dict]]:
+    """(what every row's conditions share, what each row has of its own), nested dicts split
+    key by key — so a sweep's rows carry their wind and nothing else."""
+    shared: dict = {}
+    own: list[dict] = [{} for _ in conditions]
+    missing = object()
+    for key in dict.fromkeys(k for c in conditions for k in c):
+        values = [c.get(key, missing) for c in conditions]
+        if all(v == values[0] for v in values):
+            shared[key] = values[0]
+        elif all(isinstance(v, dict) for v in values):
+            inner_shared, inner_own = split_conditions(values)
+            if inner_shared:
+                shared[key] = inner_shared
+            for row, part in zip(own, inner_own, strict=True):
+                if part:
+                    row[key] = part
+        else:
+            for row, v in zip(own, values, strict=True):
+                if v is not missing:
+                    row[key] = v
+    return shared, own
+
+
+@dataclass
+class Table:
+    """One results table: rows from the builders above and the columns shown of them."""
+
+    title: str
+    columns: list[str]
+    rows: list[dict] = field(default_factory=list)
+
+    def render(self, style: str = "plain") -> str:
+        return format_table(self.rows, self.columns, style=style)
+
+    def to_dict(self) -> dict:
+        """Title, columns, the conditions every row shares, and the rows (cells, map digest,
+        policy, backend, raw numbers, and the conditions that differ between rows)."""
+        shared, own = split_conditions([_plain(r.get("conditions") or {}) for r in self.rows])
+        rows = []
+        for row, conditions in zip(self.rows, own, strict=True):
+            entry = _plain({k: v for k, v in row.items() if k != "conditions"})
+            if conditions:
+                entry["conditions"] = conditions
+            rows.append(entry)
+        return {"title": self.title, "columns": self.columns, "conditions": shared, "rows": rows}
+
+
+def write_tables(path: str | Path, tables: dict[str, Table]) -> Path:
+    """Write tables (name → table) as one JSON file, atomically."""
+    data = {name: table.to_dict() for name, table in tables.items()}
+    atomic_write_text(path, json.dumps(data, indent=2))
+    return Path(path)
+
+
+def write_rendered(path: str | Path, tables: dict[str, Table], style: str = "plain") -> Path:
+    """Write tables as shown (``plain`` or ``markdown``), one after another, atomically."""
+    text = "\n\n".join(t.render(style) for t in tables.values()) + "\n"
+    atomic_write_text(path, text)
+    return Path(path)
+
+
+# --------------------------------------------------------------------------------- evaluation
+def run_evaluation(
+    maps, policies, out: Path, backend: str = "grid", verbose: bool = True, **evaluate_kwargs
+) -> dict[str, list]:
+    """Evaluate every policy on every map; write JSON, figures and the table; print the table.
+
+    ``maps``: names, paths or :class:`GridMap` objects, each loaded once and passed on as the
+    map object, so results and file names carry the map actually evaluated (its label).
+    ``policies``: (name, policy) pairs, or a callable GridMap → pairs. Writes per policy
+    ``{backend}_{map}_{policy}.json`` and a trajectories figure, per map a coverage figure, and
+    the table as ``{backend}_tables.json``. Returns map label → results.
+    """
+    from cpp_mujoco.evaluate import evaluate
+    from cpp_mujoco.review.plots import coverage_figure, trajectories_figure
+
+    grid_maps = [load_map(m) for m in maps]
+    table = Table(f"the paper's protocol ({backend})", PROTOCOL_COLUMNS)
+    results: dict[str, list] = {}
+    for grid_map in grid_maps:
+        label, per_map = file_part(grid_map.label), []
+        chosen = policies(grid_map) if callable(policies) else policies
+        for name, policy in chosen:
+            start = time.perf_counter()
+            result = evaluate(
+                policy, grid_map, backend=backend, policy_name=name, **evaluate_kwargs
+            )
+            seconds = time.perf_counter() - start
+            stem = f"{backend}_{label}_{file_part(name)}"
+            result.to_json(out / f"{stem}.json")
+            per_map.append(result)
+            table.rows.append(protocol_row(result, seconds))
+            trajectories_figure(result, out / f"{stem}_trajectories.png")
+        coverage_figure(per_map, out / f"{backend}_{label}_coverage.png")
+        results[grid_map.label] = per_map
+    write_tables(out / f"{backend}_tables.json", {"protocol": table})
+    if verbose:
+        print(table.render())
+    return results

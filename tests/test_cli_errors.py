@@ -1,0 +1,170 @@
+"""The command line: one-line errors before anything runs, honest map labels, help, progress."""
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from cpp_mujoco import __version__
+from cpp_mujoco.agent import BUNDLED_DIR
+from cpp_mujoco.cli import build_parser, main
+from cpp_mujoco.maps import GridMap, load_map
+
+SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
+
+
+def _one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def _exit_code(argv) -> int:
+    """main's return value, or the SystemExit code argparse raises."""
+    try:
+        return main(argv)
+    except SystemExit as e:
+        return e.code
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["fly", "--seed", "-1"], ["--seed", ">= 0", "-1"]),
+        (["fly", "--budget", "0"], ["--budget", ">= 1"]),
+        (["demo", "--budget-step", "0"], ["--budget-step", ">= 1"]),
+        (["evaluate", "--map", "Z"], ["unknown map 'Z'"]),
+    ],
+)
+def test_bad_option_is_one_line_and_exit_2(argv, words, capsys):
+    assert _exit_code(argv) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert all(w in line for w in words), line
+
+
+@pytest.mark.parametrize("option", ["--rrd", "--video", "--onboard-video"])
+def test_output_file_option_pointing_at_a_folder_fails_before_flying(tmp_path, option, capsys):
+    code = main(["fly", "--map", "C", "--planner", "safe-greedy", option, str(tmp_path)])
+    assert code == 2
+    out, err = capsys.readouterr()
+    assert out == ""  # nothing flew
+    line = _one_line(err)
+    assert option in line and "is a folder" in line
+
+
+def test_missing_parent_folder_of_an_output_file_is_created(tmp_path, capsys):
+    rrd = tmp_path / "new" / "deeper" / "m.rrd"
+    code = main(["fly", "--map", "C", "--planner", "safe-greedy", "--backend", "grid",
+                 "--budget", "30", "--rrd", str(rrd)])  # fmt: skip
+    assert code == 0 and rrd.stat().st_size > 0
+
+
+def test_a_run_folder_given_as_agent_names_the_checkpoint_inside(tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    shutil.copyfile(BUNDLED_DIR / "A.pt", run / "best.pt")
+    for argv in (
+        ["fly", "--map", "A", "--agent", str(run)],
+        ["evaluate", "--map", "A", "--agent", str(run), "--out", str(tmp_path)],
+    ):
+        assert main(argv) == 2
+        line = _one_line(capsys.readouterr().err)
+        assert "is a folder" in line and str(run / "best.pt") in line
+        assert "weights_only" not in line
+
+
+def test_a_user_map_has_no_default_agent(tmp_path, capsys):
+    # a 16x16 user map saved as A.png used to be flown by the bundled agent of map A
+    path = tmp_path / "A.png"
+    b = load_map("B")
+    GridMap(b.landing, b.target, b.nfz, name="A").save(path)
+    assert main(["fly", "--map", str(path), "--backend", "grid"]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "not a bundled map" in line and "--agent" in line
+
+
+def test_evaluate_a_user_map_by_path_through_every_policy(tmp_path, capsys):
+    # before: the second step of the first policy reloaded the map by name ("unknown map 'field7'")
+    path = tmp_path / "maps" / "field7.png"
+    path.parent.mkdir()
+    SMALL.save(path)
+    out = tmp_path / "out"
+    code = main(["evaluate", "--map", str(path), "--planner", "safe-greedy", "random",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    for policy in ("safe-greedy", "random"):
+        assert json.loads((out / f"grid_field7_{policy}.json").read_text())["map"] == "field7"
+        assert (out / f"grid_field7_{policy}_trajectories.png").is_file()
+    assert (out / "grid_field7_coverage.png").is_file()
+
+
+def test_a_user_map_named_like_a_bundled_map_is_labelled_and_drawn_as_itself(
+    tmp_path, capsys, monkeypatch
+):
+    import cpp_mujoco.review.plots as plots
+
+    path = tmp_path / "A.png"
+    SMALL.save(path)
+    label = f"A-{load_map(path).digest[:8]}"
+    drawn = []
+    draw_map = plots.draw_map
+    monkeypatch.setattr(plots, "draw_map", lambda ax, m, *a: drawn.append(m) or draw_map(ax, m, *a))
+    code = main(["evaluate", "--map", str(path), "--planner", "safe-greedy", "--out",
+                 str(tmp_path / "out")])  # fmt: skip
+    assert code == 0
+    table = capsys.readouterr().out
+    row = next(line for line in table.splitlines() if line.startswith(label))
+    assert row.split()[-2] == "-"  # no paper landing ratio: that is the bundled map A's
+    data = json.loads((tmp_path / "out" / f"grid_{label}_safe-greedy.json").read_text())
+    assert data["map"] == label and data["map_digest"] == SMALL.digest
+    assert data["episodes"] == 4 * 51  # the user's 4 landing cells, not bundled A's 36
+    assert not list((tmp_path / "out").glob("grid_A_*"))
+    assert drawn and all(m.digest == SMALL.digest for m in drawn)  # figures of the user's map
+    assert main(["maps", str(path), "--out", str(tmp_path / "maps")]) == 0
+    assert (tmp_path / "maps" / f"map_{label}.png").is_file()
+
+
+def test_every_option_has_help_and_states_its_default_at_most_once():
+    parser = build_parser()
+    commands = parser._subparsers._group_actions[0].choices  # noqa: SLF001
+    for name, sub in commands.items():
+        if name == "train":  # its options are generated from TrainConfig in agent/cli.py
+            continue
+        for action in sub._actions:  # noqa: SLF001
+            if action.dest == "help":
+                continue
+            assert action.help, f"{name} {action.option_strings or action.dest} has no help"
+            text = action.help.replace("%(default)s", "")
+            assert text.count("default") <= 1, f"{name} {action.option_strings}"
+        assert any(a.dest == "no_progress" for a in sub._actions) == (name != "maps"), name  # noqa: SLF001
+
+
+def test_version_through_python_m_cpp_mujoco():
+    result = subprocess.run(
+        [sys.executable, "-m", "cpp_mujoco", "--version"], capture_output=True, text=True
+    )
+    assert result.returncode == 0 and result.stdout.strip() == f"cpp-mujoco {__version__}"
+
+
+@pytest.mark.parametrize(
+    ("argv", "tty", "bar"),
+    [
+        ([], False, False),  # not a terminal: quiet
+        ([], True, True),
+        (["--no-progress"], True, False),
+    ],
+)
+def test_progress_bars_only_on_a_terminal(tmp_path, capsys, monkeypatch, argv, tty, bar):
+    path = tmp_path / "small.png"
+    SMALL.save(path)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: tty)
+    assert main(["evaluate", "--map", str(path), "--planner", "safe-greedy",
+                 "--out", str(tmp_path), *argv]) == 0  # fmt: skip
+    assert main(["fly", "--map", str(path), "--planner", "safe-greedy", "--backend", "grid",
+                 "--budget", "8", "--start", "0,1", *argv]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert ("grid small" in err and "ep/s" in err) == bar, err  # the protocol's bar
+    assert ("fly small" in err and "action" in err) == bar, err  # the mission's bar

@@ -1,0 +1,49 @@
+"""``scripts/train_all.py`` stops at the first map whose ``train`` fails: it must never evaluate,
+summarise or install a ``best.pt`` left in a folder the training refused."""
+
+import importlib.util
+import shutil
+from pathlib import Path
+
+from cpp_mujoco.agent import BUNDLED_DIR
+
+SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "train_all.py"
+
+
+def _train_all():
+    spec = importlib.util.spec_from_file_location("train_all", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_refused_run_folder_stops_the_script(tmp_path, capsys):
+    """A folder with an old agent but no checkpoint.pt is refused by ``train``; before the fix
+    the script went on to evaluate that stale best.pt and wrote it into summary.json."""
+    (tmp_path / "A").mkdir()
+    shutil.copyfile(BUNDLED_DIR / "A.pt", tmp_path / "A" / "best.pt")
+    code = _train_all().main(["--out", str(tmp_path), "--maps", "A", "B", "--minutes", "0.01"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "is not empty" in err  # train's own one-line error
+    assert "train_all: training map A failed (exit 2" in err and "run again" in err
+    assert not (tmp_path / "summary.json").exists()
+    assert not (tmp_path / "B").exists()  # the maps after it did not run
+
+
+def test_bad_train_option_stops_the_script(tmp_path, capsys):
+    code = _train_all().main(["--out", str(tmp_path), "--maps", "A", "--", "--gamma", "nan"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--gamma" in err and "train_all: training map A failed" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_run_without_an_evaluation_stops_with_a_message(tmp_path, capsys):
+    """Too short a run selects no best.pt; the script says so instead of a traceback."""
+    fast = ["--eval-every", "1000000", "--demo-fraction", "0", "--no-final-eval", "--threads", "1"]
+    argv = ["--out", str(tmp_path), "--maps", "A", "--minutes", "0.002", "--", *fast]
+    code = _train_all().main(argv)
+    err = capsys.readouterr().err
+    assert code == 1 and "best.pt is missing" in err and "--minutes" in err
+    assert (tmp_path / "A" / "checkpoint.pt").is_file()  # the run itself is resumable
+    assert not (tmp_path / "summary.json").exists()

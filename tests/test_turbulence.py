@@ -1,0 +1,192 @@
+"""Dryden turbulence (MIL-F-8785C low altitude): parameters, exact discretisation, generated
+statistics vs the model, seeding, validation, and its way into the flight and the protocol."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from scipy.linalg import expm
+from scipy.special import gammainc
+
+import cpp_mujoco  # noqa: F401 - registers the envs
+from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics import turbulence as tb
+from cpp_mujoco.physics.calibration import calibrate
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.turbulence import DrydenParams, DrydenTurbulence, correlation, measure
+from cpp_mujoco.physics.wind import Wind
+from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
+
+TINY = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="tiny")
+DT = PhysicsConfig().control_dt  # 0.02 s
+
+
+def test_low_altitude_parameters_follow_mil_f_8785c():
+    h = 6.0 / 0.3048  # ft, the default camera altitude
+    for level, knots in (("light", 15), ("moderate", 30), ("severe", 45)):
+        p = DrydenParams.low_altitude(level, 6.0)
+        sigma_w = 0.1 * knots * 0.514444
+        assert p.sigma_w == pytest.approx(sigma_w, rel=1e-5)
+        assert p.sigma_u == p.sigma_v == pytest.approx(sigma_w / (0.177 + 0.000823 * h) ** 0.4)
+        assert p.length_w == pytest.approx(6.0)
+        assert p.length_u == p.length_v == pytest.approx(h / (0.177 + 0.000823 * h) ** 1.2 * 0.3048)
+    moderate = DrydenParams.low_altitude("moderate", 6.0)
+    assert (round(moderate.sigma_u, 2), round(moderate.length_u, 1)) == (2.98, 43.1)
+    low = DrydenParams.low_altitude("light", 1.0)  # below 10 ft: the standard's lowest height
+    assert low.length_w == pytest.approx(10 * 0.3048)
+
+
+def test_the_discretisation_is_exact():
+    """Φ = expm(A·dt); the kick keeps the unit stationary covariance; the sampled output has
+    the Dryden correlation at every lag (no sampling noise: matrix algebra)."""
+    h = np.array([1.0, math.sqrt(3.0)])
+    for r in (1e-4, 0.01, 0.2, 0.3, 1.5):  # both branches of the small-r series
+        f11, f12, f21, f22, l11, l21, l22 = tb.second_order(r)
+        phi = np.array([[f11, f12], [f21, f22]])
+        chol = np.array([[l11, 0.0], [l21, l22]])
+        assert phi == pytest.approx(expm(np.array([[0.0, 1.0], [-1.0, -2.0]]) * r), abs=1e-14)
+        assert phi @ phi.T + chol @ chol.T == pytest.approx(np.eye(2), abs=1e-14)
+        power = np.eye(2)
+        for k in range(1, 40):
+            power = power @ phi
+            assert h @ power @ h / 4 == pytest.approx(correlation("w", k * r, 1.0), abs=1e-12)
+        decay, kick = tb.first_order(r)
+        assert (decay, decay**2 + kick**2) == pytest.approx((math.exp(-r), 1.0), abs=1e-15)
+    for x in (1e-6, 1e-3, 0.3, 0.4999, 0.5, 2.0):
+        assert tb._tail3(x) == pytest.approx(gammainc(3, x), rel=1e-13)
+
+
+def sample(params, dt, airspeed, ticks, seed=0):
+    turbulence = DrydenTurbulence(params, dt)
+    turbulence.reset(np.random.default_rng(seed))
+    speed = turbulence.effective_airspeed(airspeed)
+    return turbulence.sequence(speed, ticks), speed
+
+
+@pytest.mark.parametrize(
+    ("dt", "airspeed", "axes"),
+    [(DT, 10.0, "w"), (0.1, 25.0, "uv")],
+    ids=["control-rate-w", "coarse-uv"],
+)
+def test_generated_gusts_match_the_model(dt, airspeed, axes):
+    """σ within 5 %, the correlation at lag L/V and the fitted scale length within 10 %.
+    300k ticks hold ≥ 17 000 scale lengths of the axes checked (sampling scatter over seeds:
+    < 1 % on σ, ≤ 3.5 % on ρ, ≤ 2 % on L); u and v need long air paths, so their case samples
+    coarsely — the discretisation is exact at any dt (test above)."""
+    params = DrydenParams.low_altitude("moderate", 6.0)
+    gusts, speed = sample(params, dt, airspeed, 300_000)
+    fitted = measure(gusts, dt, speed, params)
+    for axis in axes:
+        i, length = "uvw".index(axis), params.length(axis)
+        assert gusts[:, i].std() == pytest.approx(params.sigma(axis), rel=0.05), axis
+        lag = max(1, round(length / (speed * dt)))
+        x = gusts[:, i] - gusts[:, i].mean()
+        rho = float(x[:-lag] @ x[lag:] / (x @ x) * len(x) / (len(x) - lag))
+        assert rho == pytest.approx(correlation(axis, lag * speed * dt, length), rel=0.10), axis
+        assert fitted[axis]["length_fit"] == pytest.approx(length, rel=0.10), axis
+
+
+def test_airspeed_sets_the_time_scale_with_a_floor():
+    params = DrydenParams.low_altitude("severe", 6.0)
+    slow, _ = sample(params, DT, 0.2, 200, seed=4)  # below MIN_AIRSPEED: held at 1 m/s
+    floor, _ = sample(params, DT, tb.MIN_AIRSPEED, 200, seed=4)
+    fast, _ = sample(params, DT, 8.0, 200, seed=4)
+    assert np.array_equal(slow, floor) and not np.allclose(fast, floor)
+    # faster air past the UAV: the w gust decorrelates faster (L_w / V)
+    lag1 = [np.corrcoef(g[:-1, 2], g[1:, 2])[0, 1] for g in (floor, fast)]
+    assert lag1[0] > lag1[1]
+
+
+def winds(config: PhysicsConfig, seed: int, ticks: int = 300, speed: float = 2.0) -> np.ndarray:
+    """The default wind part's output along a straight eastward flight."""
+    wind = Wind(config, config.control_dt)
+    wind.reset(np.random.default_rng(seed))
+    dt = config.control_dt
+    return np.array([wind.velocity(k * dt, (speed * k * dt, 0.0, 6.0)) for k in range(ticks)])
+
+
+def test_none_is_exactly_the_steady_wind_and_levels_are_seeded():
+    calm = PhysicsConfig(wind_speed=4.0, wind_direction=90.0)
+    assert Wind(calm, DT).turbulence is None
+    assert np.array_equal(winds(calm, 1), np.tile(calm.wind_vector, (300, 1)))
+    moderate = PhysicsConfig(wind_speed=4.0, wind_direction=90.0, turbulence="moderate")
+    first = winds(moderate, 1)
+    assert np.array_equal(first, winds(moderate, 1))  # same seed, same gusts
+    assert not np.allclose(first, winds(moderate, 2))  # another seed, other gusts
+    assert np.all(first.std(axis=0) > 0.01)  # all three components move
+    # OU gusts stay available and combine with turbulence, still seeded
+    both = PhysicsConfig(gust_std=1.0, turbulence="light")
+    assert np.array_equal(winds(both, 3), winds(both, 3))
+
+
+class FixedGust:
+    """A turbulence stand-in: records the airspeeds, returns a unit u gust."""
+
+    def __init__(self):
+        self.airspeeds = []
+
+    def reset(self, rng):
+        pass
+
+    def step(self, airspeed):
+        self.airspeeds.append(airspeed)
+        return 1.0, 0.0, 0.0
+
+
+def test_u_lies_along_the_steady_wind_and_airspeed_is_relative():
+    config = PhysicsConfig(wind_speed=3.0, wind_direction=90.0, turbulence="light")  # from east
+    wind = Wind(config, DT)
+    wind.turbulence = stub = FixedGust()
+    wind.reset(np.random.default_rng(0))
+    sx, sy, sz = config.wind_vector  # (-3, 0, 0): blowing west
+    out = [wind.velocity(k * DT, (2.0 * k * DT, 0.0, 6.0)) for k in range(5)]  # east at 2 m/s
+    assert out[0] == pytest.approx((sx - 1.0, sy, sz), abs=1e-12)  # +1 m/s along the wind
+    assert stub.airspeeds[0] == pytest.approx(3.0)  # first call: no velocity yet
+    assert stub.airspeeds[1:] == pytest.approx([5.0] * 4)  # |(-3) - 2|: headwind adds up
+
+
+@pytest.mark.parametrize("value", ["strong", "Moderate", 3, None])
+def test_bad_turbulence_option_is_a_value_error_naming_it(value):
+    with pytest.raises(ValueError, match="turbulence must be one of 'none', 'light'"):
+        gym.make("cpp_mujoco/MuJoCo-v0", map=TINY, turbulence=value)
+
+
+def test_turbulence_above_the_low_altitude_model_is_rejected():
+    with pytest.raises(ValueError, match="turbulence='light'.*1000 ft"):
+        PhysicsConfig(altitude=400.0, turbulence="light")
+    PhysicsConfig(altitude=400.0)  # without turbulence any altitude flies
+
+
+def test_the_budget_unit_is_calibrated_in_calm_air_whatever_the_turbulence():
+    severe = PhysicsConfig(turbulence="severe")
+    assert severe.calibration_key() == PhysicsConfig().calibration_key()
+    assert calibrate(severe) == calibrate(PhysicsConfig())
+
+
+def fly(turbulence: str, seed: int) -> dict:
+    env = gym.make("cpp_mujoco/MuJoCo-v0", map=TINY, turbulence=turbulence)
+    env.reset(seed=seed, options={"start": (0, 0), "budget": 5})
+    for action in (1, 3, 4):  # east, back west, land
+        _, _, done, _, info = env.step(action)
+    assert done
+    return info
+
+
+def test_a_mujoco_episode_flies_in_moderate_turbulence():
+    calm, gusty = fly("none", 0), fly("moderate", 0)
+    assert gusty["landed"] and gusty["crash_reason"] is None
+    assert math.isfinite(gusty["energy_used_j"]) and gusty["energy_used_j"] > 0
+    assert gusty["energy_used_j"] != calm["energy_used_j"]
+    assert fly("moderate", 0)["energy_used_j"] == gusty["energy_used_j"]  # seeded
+    assert fly("moderate", 1)["energy_used_j"] != gusty["energy_used_j"]
+
+
+def test_turbulence_flows_through_the_protocol_into_the_conditions():
+    run = dict(backend="mujoco", budgets=[4], workers=1)
+    calm = evaluate(SafeGreedyPlanner(), TINY, **run)
+    gusty = evaluate(SafeGreedyPlanner(), TINY, env_kwargs={"turbulence": "moderate"}, **run)
+    assert gusty.conditions["physics_config"]["turbulence"] == "moderate"
+    assert calm.conditions["physics_config"]["turbulence"] == "none"
+    assert not np.array_equal(gusty.physics["energy_used_j"], calm.physics["energy_used_j"])
