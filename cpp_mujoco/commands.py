@@ -12,6 +12,9 @@ import sys
 from pathlib import Path
 
 PLANNER_NAMES = ("random", "safe-greedy", "beam-search")
+# Dryden turbulence levels (MIL-F-8785C), the same as cpp_mujoco.physics.turbulence.LEVELS; named
+# here so that building the parser imports no numerical module (a test keeps them equal)
+TURBULENCE_LEVELS = ("none", "light", "moderate", "severe")
 
 
 def int_at_least(low: int):
@@ -97,7 +100,8 @@ def cmd_maps(args) -> None:
 
 # ------------------------------------------------------------------------------------ evaluate
 def _wind(args) -> dict:
-    return {k: getattr(args, k) for k in ("wind_speed", "wind_direction", "gust_std")}
+    """The weather options as ``MuJoCo-v0`` keyword arguments (so results record them)."""
+    return {k: getattr(args, k) for k in ("wind_speed", "wind_direction", "gust_std", "turbulence")}
 
 
 def cmd_evaluate(args) -> None:
@@ -220,6 +224,11 @@ def add_wind_options(p) -> None:
     p.add_argument(
         "--gust-std", type=float, default=0.0, help="mujoco: gust strength, m/s (default: 0)"
     )
+    p.add_argument(
+        "--turbulence", default="none", choices=TURBULENCE_LEVELS,
+        help="mujoco: Dryden turbulence (MIL-F-8785C) on top of the wind; docs/turbulence.md "
+        "(default: %(default)s)",
+    )  # fmt: skip
 
 
 def add_workers_option(p) -> None:

@@ -13,14 +13,14 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass, field, fields, is_dataclass
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
 from cpp_mujoco.episode import OnBatchStep, run_batch
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
-from cpp_mujoco.io import atomic_write_text
+from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.policy import Policy, as_policy
 
@@ -122,16 +122,7 @@ class EvaluationResult:
     def to_json(self, path: str | os.PathLike) -> None:
         """Write summary and per-budget table atomically."""
         data = {**self.summary(), "per_budget": self.per_budget}
-        atomic_write_text(path, json.dumps(data, indent=2, default=_plain))
-
-
-def _plain(value: Any) -> Any:
-    """JSON for numpy scalars and arrays in conditions (options given as numpy values)."""
-    if isinstance(value, np.generic | np.ndarray):
-        return value.tolist()
-    if is_dataclass(value) and not isinstance(value, type):
-        return asdict(value)
-    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+        atomic_write_text(path, json.dumps(data, indent=2, default=json_default))
 
 
 def coverage_upper_bound(grid_map: GridMap, budget: int, fov_side: int = 3) -> float:

@@ -26,8 +26,11 @@ import numpy as np
 import cpp_mujoco  # noqa: F401  (registers the envs)
 from cpp_mujoco.episode import run_episode
 from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.geometry import GridGeometry
 
-GRID_ACTION_S = 3.0  # the grid backend's clock in the recording: seconds per action
+# the grid backend's clock in the recording: one nominal move per action
+GRID_ACTION_S = PhysicsConfig().move_duration
 
 
 @dataclass
@@ -93,8 +96,9 @@ def fly_mission(
         raise ValueError("videos need the mujoco backend")
     env = gym.make(env_id, map=grid_map, **env_kwargs).unwrapped
     physics = backend == "mujoco"
-    cell_size = env.config.cell_size if physics else 4.0
-    altitude = env.config.altitude if physics else 6.0
+    world = env.config if physics else PhysicsConfig()  # the grid is drawn at the default scale
+    cell_size, altitude = world.cell_size, world.altitude
+    fov = (env.grid_config if physics else env.config).fov_side
     review: dict[str, Any] = {"recorder": None, "cameras": [], "writers": []}
     bar = tqdm(total=budget, desc=f"fly {grid_map.label}", unit="action", disable=not progress)
     count = itertools.count(1)
@@ -112,7 +116,7 @@ def fly_mission(
             _attach_flight_review(env, recorder, video, onboard_video, image_every,
                                   review["cameras"], review["writers"])  # fmt: skip
         elif recorder is not None:
-            _log_grid_pose(recorder, grid_map, info["position"], cell_size, altitude, 0.0)
+            _log_grid_pose(recorder, grid_map, info["position"], cell_size, altitude, 0.0, fov)
 
     def log_step(action, obs, reward, info) -> None:
         bar.update()
@@ -121,7 +125,7 @@ def fly_mission(
         if recorder is None:
             return
         if not physics:
-            _log_grid_pose(recorder, grid_map, info["position"], cell_size, altitude, sim_time)
+            _log_grid_pose(recorder, grid_map, info["position"], cell_size, altitude, sim_time, fov)
         cell = info["position"][0] * grid_map.shape[1] + info["position"][1]
         recorder.log_step(sim_time, action, reward, info, obs["coverage"], cell)
 
@@ -199,11 +203,9 @@ def _finalise(recorder, writers, cameras, interrupted: str | None) -> dict[str, 
     return files
 
 
-def _log_grid_pose(recorder, grid_map, position, cell_size, altitude, time_s) -> None:
-    h, w = grid_map.shape
-    row, col = position
-    x, y = (col + 0.5 - w / 2) * cell_size, (h / 2 - row - 0.5) * cell_size
-    half = 1.5 * cell_size
+def _log_grid_pose(recorder, grid_map, position, cell_size, altitude, time_s, fov_side) -> None:
+    x, y = GridGeometry.of(grid_map, cell_size).cell_center(*position)
+    half = fov_side / 2 * cell_size
     square = np.array([[x - half, y - half], [x + half, y - half], [x + half, y + half],
                        [x - half, y + half]])  # fmt: skip
     recorder.log_pose(time_s, [x, y, altitude], (1, 0, 0, 0), square)

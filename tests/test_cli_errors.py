@@ -168,3 +168,55 @@ def test_progress_bars_only_on_a_terminal(tmp_path, capsys, monkeypatch, argv, t
     err = capsys.readouterr().err
     assert ("grid small" in err and "ep/s" in err) == bar, err  # the protocol's bar
     assert ("fly small" in err and "action" in err) == bar, err  # the mission's bar
+
+
+# ------------------------------------------------------------------------------- --turbulence
+TINY = GridMap.from_ascii(["L.T", "..."], name="tiny")  # one landing cell: one episode per budget
+
+
+def test_turbulence_levels_are_the_models():
+    from cpp_mujoco.commands import TURBULENCE_LEVELS
+    from cpp_mujoco.physics.turbulence import LEVELS
+
+    assert TURBULENCE_LEVELS == LEVELS
+
+
+def test_evaluate_in_mujoco_records_the_turbulence_it_flew(tmp_path, capsys, monkeypatch):
+    import cpp_mujoco.evaluate as evaluate_module
+
+    # before: no --turbulence option; a run in turbulence could not be asked for from the CLI
+    monkeypatch.setattr(evaluate_module, "protocol_budgets", lambda config=None, step=1: [4])
+    path = tmp_path / "tiny.png"
+    TINY.save(path)
+    out = tmp_path / "out"
+    code = main(["evaluate", "--map", str(path), "--planner", "safe-greedy", "--backend", "mujoco",
+                 "--workers", "1", "--turbulence", "moderate", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    data = json.loads((out / "mujoco_tiny_safe-greedy.json").read_text())
+    assert data["episodes"] == 1
+    assert data["conditions"]["physics_config"]["turbulence"] == "moderate"
+    assert data["conditions"]["env_kwargs"]["turbulence"] == "moderate"
+
+
+@pytest.mark.parametrize("command", ["evaluate", "fly"])
+def test_an_unknown_turbulence_level_is_one_line_and_exit_2(command, capsys):
+    argv = [command, "--backend", "mujoco", "--turbulence", "strong", "--map", "C"]
+    assert _exit_code(argv) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "--turbulence" in line and "'strong'" in line and "'moderate'" in line, line
+
+
+def test_fly_passes_the_turbulence_to_the_env(monkeypatch, capsys):
+    import cpp_mujoco.mission as mission
+
+    seen = {}
+
+    def fake_fly_mission(policy, grid_map, **kwargs):
+        seen.update(kwargs)
+        raise ValueError("stopped before flying")
+
+    monkeypatch.setattr(mission, "fly_mission", fake_fly_mission)
+    argv = ["fly", "--map", "C", "--planner", "safe-greedy", "--turbulence", "severe"]
+    assert main(argv) == 2 and "stopped before flying" in capsys.readouterr().err
+    assert seen["turbulence"] == "severe" and seen["backend"] == "mujoco"
+    assert main([*argv[:-2]]) == 2 and seen["turbulence"] == "none"  # the default: calm

@@ -16,17 +16,6 @@ TINY = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="tiny")
 SHORT = dict(map=TINY, min_budget=3, max_budget=6)
 
 
-@pytest.fixture
-def one_thread():
-    """Tiny nets: torch's thread pool on a shared 2-core box costs more than it saves."""
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
-
-
 def test_sb3_env_checker_passes_on_both_envs(recwarn):
     check_env(gym.make("cpp_mujoco/Grid-v0", **SHORT).unwrapped)
     check_env(gym.make("cpp_mujoco/MuJoCo-v0", **SHORT).unwrapped)

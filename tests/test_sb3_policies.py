@@ -22,17 +22,6 @@ from stable_baselines3.common.vec_env import DummyVecEnv  # noqa: E402
 TINY = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="tiny")
 
 
-@pytest.fixture
-def one_thread():
-    """Tiny nets: torch's thread pool on a shared 2-core box costs more than it saves."""
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
-
-
 @pytest.fixture(scope="module")
 def dqn():
     import torch

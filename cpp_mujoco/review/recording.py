@@ -26,8 +26,11 @@ import rerun.blueprint as rrb
 
 from cpp_mujoco.grid.actions import ACTION_NAMES
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.review.grid_image import grid_image, zone_colors
+
+_WORLD = PhysicsConfig()  # the default scale (a MuJoCo mission passes its own)
 
 NFZ_RGBA = (255, 30, 30, 60)
 FOOTPRINT_RGBA = (255, 220, 0, 255)
@@ -74,8 +77,8 @@ class MissionRecorder:
         self,
         path: str | os.PathLike,
         grid_map: GridMap,
-        cell_size: float = 4.0,
-        altitude: float = 6.0,
+        cell_size: float = _WORLD.cell_size,
+        altitude: float = _WORLD.altitude,
         name: str = "mission",
         flush_seconds: float | None = None,
         properties: dict[str, object] | None = None,

@@ -16,11 +16,11 @@ from __future__ import annotations
 import json
 import re
 import time
-from dataclasses import asdict, dataclass, field, is_dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cpp_mujoco.io import atomic_write_text
+from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.review.tables import format_table
 
@@ -176,18 +176,8 @@ def paper_row(agent, greedy, beam) -> dict:
 
 
 # ------------------------------------------------------------------------------------- tables
-def _json_default(value: Any) -> Any:
-    import numpy as np
-
-    if isinstance(value, np.generic | np.ndarray):
-        return value.tolist()
-    if is_dataclass(value) and not isinstance(value, type):
-        return asdict(value)
-    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
-
-
 def _plain(value: Any) -> Any:
-    return json.loads(json.dumps(value, default=_json_default))
+    return json.loads(json.dumps(value, default=json_default))
 
 
 def split_conditions(conditions: list[dict]) -> tuple[dict, list[dict]]:
