@@ -99,9 +99,25 @@ def cmd_maps(args) -> None:
 
 
 # ------------------------------------------------------------------------------------ evaluate
+_WEATHER_DEFAULTS = {
+    "wind_speed": 0.0,
+    "wind_direction": 0.0,
+    "gust_std": 0.0,
+    "turbulence": "none",
+}
+
+
 def _wind(args) -> dict:
-    """The weather options as ``MuJoCo-v0`` keyword arguments (so results record them)."""
-    return {k: getattr(args, k) for k in ("wind_speed", "wind_direction", "gust_std", "turbulence")}
+    """The weather options as ``MuJoCo-v0`` keyword arguments (so results record them); on the
+    grid, where there is no weather, a weather option is an error rather than silently ignored."""
+    weather = {k: getattr(args, k) for k in _WEATHER_DEFAULTS}
+    if args.backend != "mujoco":
+        given = [k for k, v in weather.items() if v != _WEATHER_DEFAULTS[k]]
+        if given:
+            flags = ", ".join("--" + k.replace("_", "-") for k in given)
+            raise ValueError(f"{flags}: weather needs --backend mujoco (the grid has none)")
+        return {}
+    return weather
 
 
 def cmd_evaluate(args) -> None:
@@ -109,6 +125,7 @@ def cmd_evaluate(args) -> None:
     from cpp_mujoco.planners import make_planner
     from cpp_mujoco.review.results import run_evaluation
 
+    weather = _wind(args)  # checked before anything is loaded or written
     grid_maps = [load_map(spec) for spec in args.map or bundled_maps()]
     for spec in args.agent:
         _check_agent(spec)
@@ -122,7 +139,7 @@ def cmd_evaluate(args) -> None:
     out = out_dir(args.out)
     extra: dict = {"progress": progress_wanted(args)}
     if args.backend == "mujoco":
-        extra.update(workers=args.workers, env_kwargs=_wind(args))
+        extra.update(workers=args.workers, env_kwargs=weather)
     run_evaluation(grid_maps, policies, out, args.backend, **extra)
     print(f"\nresults and figures: {out}/")
 
@@ -141,6 +158,7 @@ def _parse_start(text: str | None) -> tuple[int, int] | None:
 def cmd_fly(args) -> None:
     from cpp_mujoco.maps import load_map
 
+    weather = _wind(args)  # checked before anything is loaded or written
     grid_map = load_map(args.map)
     start = _parse_start(args.start)
     for option, suffix in (("rrd", ".rrd"), ("video", ".mp4"), ("onboard_video", ".mp4")):
@@ -164,7 +182,7 @@ def cmd_fly(args) -> None:
         print(f"offscreen rendering with {configure_gl(args.gl)}", file=sys.stderr)
     from cpp_mujoco.mission import fly_mission
 
-    extra = _wind(args) if args.backend == "mujoco" else {}
+    extra = weather
     outcome = fly_mission(
         policy, grid_map, budget=args.budget, start=start, backend=args.backend, seed=args.seed,
         rrd=args.rrd, video=args.video, onboard_video=args.onboard_video,

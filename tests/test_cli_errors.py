@@ -220,3 +220,14 @@ def test_fly_passes_the_turbulence_to_the_env(monkeypatch, capsys):
     assert main(argv) == 2 and "stopped before flying" in capsys.readouterr().err
     assert seen["turbulence"] == "severe" and seen["backend"] == "mujoco"
     assert main([*argv[:-2]]) == 2 and seen["turbulence"] == "none"  # the default: calm
+
+
+@pytest.mark.parametrize("command", ["evaluate", "fly"])
+def test_weather_on_the_grid_backend_is_refused_not_ignored(command, tmp_path, capsys):
+    """The grid has no wind: a weather option there would be silently ignored, so it is an error."""
+    extra = ["--planner", "safe-greedy"] if command == "fly" else ["--out", str(tmp_path / "o")]
+    code = main([command, "--map", "C", "--backend", "grid", "--wind-speed", "5", *extra])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1
+    assert "--wind-speed" in err and "--backend mujoco" in err
+    assert not (tmp_path / "o").exists()
