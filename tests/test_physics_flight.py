@@ -91,7 +91,7 @@ def test_camera_coverage_contains_grid_coverage():
     assert info["nfz_violations"] == 0
 
 
-def test_one_budget_unit_per_nominal_move_and_more_in_a_headwind():
+def test_one_budget_unit_per_nominal_move_and_more_upwind():
     cal = calibration(CONFIG)
     unit = unit_energy(CONFIG)
     assert cal["move_energy_max_j"] / cal["move_energy_min_j"] < 1.01
@@ -109,11 +109,13 @@ def test_one_budget_unit_per_nominal_move_and_more_in_a_headwind():
     assert moves == pytest.approx(4.0, abs=0.05)
     assert unit == pytest.approx(cal["unit_energy_j"] * (1 + CONFIG.unit_margin))
     assert calm["budget"] == 10 - 4  # the shown budget keeps pace with the grid's count
-    # an 8 m/s wind from the north: the same path costs more, the headwind leg most
-    windy = fly((NORTH, NORTH, SOUTH, SOUTH), wind_speed=8.0, wind_direction=0.0)
-    assert windy["energy_used_j"] > 1.01 * calm["energy_used_j"]
-    headwind = fly((NORTH,), wind_speed=8.0, wind_direction=0.0)["energy_used_j"]
-    assert headwind > 1.02 * fly((NORTH,))["energy_used_j"]
+    # a 12 m/s wind from the north: the headwind leg costs far more than the tailwind leg and
+    # than calm air (at moderate airspeed translational lift makes flight cheaper than hover:
+    # tests/test_power_model.py)
+    headwind = fly((NORTH,), wind_speed=12.0, wind_direction=0.0)["energy_used_j"]
+    tailwind = fly((SOUTH,), wind_speed=12.0, wind_direction=0.0)["energy_used_j"]
+    assert headwind > 1.2 * tailwind
+    assert headwind > 1.2 * fly((NORTH,))["energy_used_j"]
 
 
 def test_calibration_cache_round_trip(tmp_path, monkeypatch):

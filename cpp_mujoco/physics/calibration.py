@@ -1,5 +1,9 @@
 """The energy of one budget unit: a nominal one-cell move in calm air, measured by flying it.
 
+The energy is what the move draws from the LiPo pack (:mod:`~cpp_mujoco.physics.battery`): the
+rotors' electrical energy plus the pack's I²R loss, with the pack held at the middle of the
+budget's state-of-charge window.
+
 The unit depends only on how a calm move flies (airframe, controller, timing, geometry), not on
 the map or the weather, so it is cached per configuration: in this process, and as a small JSON
 file keyed by a hash of the configuration, the model XML, the flight code and the MuJoCo
@@ -46,7 +50,8 @@ def cache_dir() -> Path:
 
 def calibrate(config: PhysicsConfig) -> dict:
     """Fly the calibration moves and return the figures (energy per move in J, …)."""
-    calm = replace(config, wind_speed=0.0, gust_std=0.0, turbulence="none")
+    # the cut-off is a limit of the pack, not part of a move's cost: it is off while measuring
+    calm = replace(config, wind_speed=0.0, gust_std=0.0, turbulence="none", battery_cutoff_v=0.0)
     grid = GridMap.from_ascii(["GGG", "GGG", "GGG"], name="calibration")
     flight = Flight(compile_arena(build_arena(grid, calm)), grid, calm)
     flight.reset(1, 1)
@@ -137,5 +142,5 @@ def _source_digest() -> str:
     too: default gains are left out of the key, their values are in its source)."""
     here = Path(__file__).resolve().parent
     names = ("controller.py", "flight.py", "energy.py", "wind.py", "arena.py", "quadrotor.py",
-             "geometry.py", "config.py")  # fmt: skip
+             "geometry.py", "config.py", "battery.py")  # fmt: skip
     return "".join((here / n).read_text() for n in names)

@@ -23,9 +23,12 @@ from cpp_mujoco.physics.turbulence import check_level
 # fields that do not change how a calm-air move flies (so they do not change the energy unit)
 _NOT_CALIBRATED = {
     "wind_speed", "wind_direction", "gust_std", "gust_tau", "turbulence", "unit_margin",
+    "battery_cutoff_v",
 }  # fmt: skip
 
 _INF = math.inf
+# the first is the default; "forward-flight" changes what hovering and moving in wind cost
+POWER_MODELS = ("forward-flight", "momentum")  # the first is the default
 # field: (low, high, low included, high included); every field must also be a finite number.
 # Upper bounds only where the physics breaks beyond them: a timestep past 20 ms is half the
 # 40 ms rotor lag (Euler on the filter); tilts are angles.
@@ -52,6 +55,10 @@ _RANGES: dict[str, tuple[float, float, bool, bool]] = {
     "wind_direction": (-_INF, _INF, False, False),
     "gust_std": (0, _INF, True, False),
     "gust_tau": (0, _INF, False, False),
+    "battery_cells": (1, _INF, True, False),
+    "battery_cell_resistance": (0, _INF, True, False),
+    "battery_cutoff_v": (0, _INF, True, False),
+    "battery_reserve": (0, 1, True, False),
 }
 
 
@@ -188,6 +195,16 @@ class PhysicsConfig:
     # Dryden turbulence (MIL-F-8785C, low altitude) on top: "none", "light", "moderate",
     # "severe" (W20 = 15 / 30 / 45 kt); see cpp_mujoco/physics/turbulence.py
     turbulence: str = "none"
+    # --- rotor power (cpp_mujoco/physics/energy.py, docs/power.md): "forward-flight" (Glauert
+    # induced velocity with the airspeed through each disk, profile and drag power) or
+    # "momentum" (hover momentum theory, airspeed-blind); both give the same hover in still air
+    power_model: str = POWER_MODELS[0]
+    # --- the LiPo pack (cpp_mujoco/physics/battery.py; sources in assets/README.md). An
+    # episode's pack holds its budget of drawable energy between full charge and the reserve.
+    battery_cells: int = 3  # in series
+    battery_cell_resistance: float = 0.005  # Ω per cell, internal (DC) resistance
+    battery_cutoff_v: float = 3.3  # V per cell under load; below it the motors are cut
+    battery_reserve: float = 0.1  # state of charge left when the budget is spent
     # --- the waypoint controller's bandwidths (a dict of some fields is accepted too)
     controller: ControllerGains = field(default_factory=ControllerGains)
 
@@ -196,6 +213,10 @@ class PhysicsConfig:
         ``gust_tau`` (division), a timestep the controller rate cannot be made of."""
         _check_numbers(self, _RANGES)
         check_level(self.turbulence, self.altitude)
+        if self.power_model not in POWER_MODELS:
+            raise ValueError(
+                f"power_model must be one of {', '.join(POWER_MODELS)}, got {self.power_model!r}"
+            )
         object.__setattr__(self, "controller", ControllerGains.from_value(self.controller))
         ratio = 1.0 / (self.control_rate * self.timestep)
         if abs(ratio - round(ratio)) > 1e-6 * ratio or round(ratio) < 1:
@@ -232,16 +253,27 @@ class PhysicsConfig:
     def calibration_key(self, extra: str = "") -> str:
         """Hash of every field that changes a calm-air move (plus ``extra``, e.g. model XML).
 
-        Default gains are left out, so a default configuration keeps the key it had before
-        gains were configurable; a change of the defaults themselves reaches the key through
-        ``extra`` (the calibration hashes this module's source).
+        Default gains (and battery fields at their defaults) are left out, so a default
+        configuration keeps the key it had before they were configurable; a change of the
+        defaults themselves reaches the key through ``extra`` (the calibration hashes this
+        module's source).
         """
         relevant = {k: v for k, v in asdict(self).items() if k not in _NOT_CALIBRATED}
         if self.controller == ControllerGains():
             del relevant["controller"]
+        if self.power_model == POWER_MODELS[0]:  # the default model: the key it had before
+            del relevant["power_model"]
+        for name in _BATTERY_DEFAULTS:
+            if relevant.get(name) == _BATTERY_DEFAULTS[name]:
+                del relevant[name]
         text = json.dumps(relevant, sort_keys=True) + extra
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     @classmethod
     def field_names(cls) -> set[str]:
         return {f.name for f in fields(cls)}
+
+
+_BATTERY_DEFAULTS = {
+    f.name: float(f.default) for f in fields(PhysicsConfig) if f.name.startswith("battery_")
+}

@@ -4,7 +4,9 @@ Same spaces, reset options and info keys as ``cpp_mujoco/Grid-v0`` (both derive 
 :class:`~cpp_mujoco.grid.single_env.SingleGridEnv`), so a grid agent runs unchanged. What changes
 is where the outcome of an action comes from: the safety controller still decides it (the very
 same :class:`SafetyController`), but the move is flown, coverage is what the camera footprint
-saw, and the budget is the battery's remaining energy in calibrated units. That outcome goes
+saw, and the budget is the LiPo pack's remaining drawable energy in calibrated units (a calm
+move's energy drawn from the pack, I²R loss included; ``info`` adds ``state_of_charge`` and
+``battery_voltage_v``). That outcome goes
 through :meth:`GridMDP.apply`, the grid's own rules for reward, crash and termination.
 """
 
@@ -154,5 +156,7 @@ class MuJoCoEnv(SingleGridEnv):
             "flight_time_s": float(f.time),
             "nfz_violations": int(f.nfz_violations),
             "tracking_error_m": float(self._last.tracking_error),
+            "state_of_charge": float(f.battery.soc),
+            "battery_voltage_v": float(f.battery.voltage),
             "crash_reason": self._crash_reason,
         }

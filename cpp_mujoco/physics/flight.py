@@ -6,8 +6,9 @@ Parts: the vehicle is the compiled model; the controller and the wind are swappa
 
 Rates: MuJoCo steps every ``timestep``; the controller, wind, drag, energy and failure checks run
 every ``substeps`` physics steps (``mj_step(..., nstep=k)``); the camera takes a frame at
-``camera_rate`` plus one at the start and end of every action. Energy is still the exact sum over
-physics steps (see :class:`~cpp_mujoco.physics.energy.IntervalEnergy`); no-fly violations are
+``camera_rate`` plus one at the start and end of every action. Energy is the sum over physics
+steps of the thrust's power, scaled per tick by the forward-flight factor of the tick's airspeed
+(see :class:`~cpp_mujoco.physics.energy.IntervalEnergy`); no-fly violations are
 sampled per tick and counted as ``substeps`` physics steps each.
 """
 
@@ -21,10 +22,11 @@ import mujoco
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.battery import Battery, PackSpec
 from cpp_mujoco.physics.camera import CoverageCamera, Polygon
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.controller import GeometricController, MinJerk
-from cpp_mujoco.physics.energy import IntervalEnergy, PowerModel
+from cpp_mujoco.physics.energy import ForwardFlightPower, IntervalEnergy, PowerModel, air_in_body
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.physics.parts import Controller, WindModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
@@ -86,7 +88,15 @@ class Flight:
         self.wind = wind if wind is not None else Wind(config, self.dt)
         self.drag = QuadraticDrag(config.air_density, p.drag_area)
         self.power = PowerModel(p, config.air_density)
-        self.interval_energy = IntervalEnergy(self.power, config.timestep, p.motor_tau, self.k)
+        self.battery = Battery(PackSpec.from_config(config))  # the load's energy comes from it
+        forward = (  # rotor power with the airspeed through the disks, or hover momentum theory
+            ForwardFlightPower(p, config.air_density)
+            if config.power_model == "forward-flight"
+            else None
+        )
+        self.interval_energy = IntervalEnergy(
+            self.power, config.timestep, p.motor_tau, self.k, forward
+        )
 
         frame_body = int(model.body_parentid[p.body_id])
         jnt = int(model.body_jntadr[frame_body])
@@ -135,6 +145,7 @@ class Flight:
         self.controller.reset()
         self.wind.reset(rng if rng is not None else np.random.default_rng(0))
         self.capacity = capacity
+        self.battery.reset(capacity)
         self.energy_used = 0.0
         self.motors_on = True
         self.nfz_violations = 0
@@ -196,7 +207,8 @@ class Flight:
         out.newly_seen += self.frame()
         m, d, k, dt = self.model, self.data, self.k, self.dt
         qpos, qvel, ctrl, act, xfrc = self._qpos, self._qvel, self._ctrl, self._act, self._xfrc
-        controller, energy_of = self.controller, self.interval_energy
+        controller, energy_of, battery = self.controller, self.interval_energy, self.battery
+        airspeed_power = getattr(energy_of, "forward", None) is not None
         wind, drag = self.wind.velocity, self.drag.force
         cell_index, no_fly, camera = self.geo.cell_index, self.no_fly, self.camera
         bx, by, bz = self.bounds
@@ -237,7 +249,7 @@ class Flight:
             # ---- done?
             if not self.motors_on:
                 if self._ground_contact() is not None or t >= self.config.fall_time_limit:
-                    out.failure = "battery empty: motors cut, the UAV fell"
+                    out.failure = battery.failure or "battery empty: motors cut, the UAV fell"
                     break
             elif land:
                 touch = self._ground_contact()
@@ -261,21 +273,27 @@ class Flight:
                 if t >= limit - 1e-9:
                     break
             # ---- control, energy, wind, physics
+            w = wind(d.time, pos)  # once per tick: stateful wind models advance on each call
             if self.motors_on:
                 thrusts = act.tolist()
                 controller.observe(vel, R, thrusts, dt)
                 f = controller(pos, vel, R, qv[3:], p_ref, v_ref, a_ref, dt)
-                e = energy_of(thrusts, f)
-                if self.energy_used + e >= self.capacity:  # the battery empties in this tick
-                    self.energy_used = self.capacity
+                e = energy_of(thrusts, f, air_in_body(vel, w, R) if airspeed_power else None)
+                e = battery.draw(e / dt, dt)  # J from the pack: the load plus its I²R loss
+                # the pack sags under the cut-off or cannot carry the load (None), or the
+                # budget's energy runs out in this tick
+                if e is None or self.energy_used + e >= self.capacity:
+                    if e is not None:
+                        self.energy_used = self.capacity
                     self.motors_on = False
+                    battery.idle()
                     f, t = zero, 0.0  # the fall gets its own time limit
                 else:
                     self.energy_used += e
             else:
                 f = zero
             ctrl[:] = f
-            xfrc[:3] = drag(vel, wind(d.time, pos))
+            xfrc[:3] = drag(vel, w)
             step(m, d, k)
             t += dt
         out.newly_seen += self.frame()
@@ -304,6 +322,7 @@ class Flight:
         """Motors off after touchdown; let the airframe come to rest on its skids."""
         self._ctrl[:] = 0.0
         self.motors_on = False
+        self.battery.idle()
         self._xfrc[:3] = 0.0
         mujoco.mj_step(self.model, self.data, nstep=max(1, round(seconds / self.config.timestep)))
 

@@ -2,7 +2,8 @@
 
 What a reviewer sees: the map in 3D (zones in the paper's colours, no-fly volumes), the UAV's
 pose and trajectory, the camera footprint on the ground, the coverage grid over time, the
-onboard camera frames, and energy / budget / reward / coverage as time series — on a ``sim_time``
+onboard camera frames, and energy / budget / reward / coverage (and, in physics, the pack's
+state of charge and terminal voltage) as time series — on a ``sim_time``
 timeline and a ``step`` timeline (one tick per grid action), laid out by a blueprint.
 
 The file is written as the mission goes, in chunks of a few seconds of wall time (one chunk per
@@ -36,6 +37,9 @@ NFZ_RGBA = (255, 30, 30, 60)
 FOOTPRINT_RGBA = (255, 220, 0, 255)
 TRAJECTORY_RGBA = (255, 40, 40, 255)
 METRICS = ("energy_j", "budget", "reward", "return", "coverage_ratio")
+# the LiPo pack's series, from the MuJoCo backend's info (the grid has no battery): their views
+# join the blueprint with the first step that carries them, so grid recordings stay as they were
+BATTERY_METRICS = ("state_of_charge", "battery_voltage_v")
 APPLICATION_ID = "cpp_mujoco"
 FLUSH_SECONDS = 5.0  # wall time between flushes: about what a SIGKILL loses of a mission
 
@@ -49,7 +53,8 @@ def batcher_config(flush_seconds: float = FLUSH_SECONDS) -> rr.ChunkBatcherConfi
     )
 
 
-def blueprint() -> rrb.Blueprint:
+def blueprint(battery: bool = False) -> rrb.Blueprint:
+    metrics = METRICS + (BATTERY_METRICS if battery else ())
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial3DView(origin="world", name="mission"),
@@ -58,7 +63,7 @@ def blueprint() -> rrb.Blueprint:
                 rrb.Spatial2DView(origin="coverage", name="coverage grid"),
             ),
             rrb.Vertical(
-                *(rrb.TimeSeriesView(origin=f"metrics/{m}", name=m) for m in METRICS),
+                *(rrb.TimeSeriesView(origin=f"metrics/{m}", name=m) for m in metrics),
             ),
             column_shares=[3, 2, 2],
         ),
@@ -109,6 +114,7 @@ class MissionRecorder:
         self.trajectory: list[np.ndarray] = []
         self.step = 0
         self.total_reward = 0.0
+        self.battery = False  # battery series seen (and their views sent)
         self._log_scene()
 
     # ------------------------------------------------------------------ static scene
@@ -212,6 +218,13 @@ class MissionRecorder:
             "return": self.total_reward,
             "coverage_ratio": info["coverage_ratio"],
         }
+        if not self.battery and all(m in info for m in BATTERY_METRICS):
+            self.battery = True
+            for metric in BATTERY_METRICS:
+                self.rec.log(f"metrics/{metric}", rr.SeriesLines(names=metric), static=True)
+            self.rec.send_blueprint(blueprint(battery=True))
+        if self.battery:
+            values.update({m: info.get(m, float("nan")) for m in BATTERY_METRICS})
         for metric, value in values.items():
             if np.isfinite(value):
                 self.rec.log(f"metrics/{metric}", rr.Scalars(float(value)))

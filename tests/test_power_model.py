@@ -1,0 +1,190 @@
+"""Rotor power in forward flight: still-air hover unchanged, Glauert solved, the power curve's
+bucket, hover in wind, the tick-rate integral against the per-physics-step one, bookkeeping."""
+
+import math
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+
+import cpp_mujoco  # noqa: F401 - registers the envs
+import cpp_mujoco.physics.flight as flight_module
+from cpp_mujoco.grid.actions import NORTH, SOUTH
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.arena import build_arena, compile_arena
+from cpp_mujoco.physics.calibration import _airframe
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.energy import (
+    ForwardFlightPower,
+    PowerModel,
+    air_in_body,
+    level_flight_power,
+)
+from cpp_mujoco.physics.flight import Flight, quat_to_mat
+
+GRID = GridMap.from_ascii(["GGG", "GGG", "GGG"], name="power")
+RHO = 1.225
+
+
+@pytest.fixture(scope="module")
+def params():
+    return _airframe()
+
+
+@pytest.fixture(scope="module")
+def model(params):
+    return ForwardFlightPower(params, RHO)
+
+
+def make_flight(**kw) -> Flight:
+    config = PhysicsConfig(**{"power_model": "forward-flight", **kw})
+    return Flight(compile_arena(build_arena(GRID, config)), GRID, config)
+
+
+def test_still_air_power_equals_the_calibrated_hover(params, model):
+    hover = PowerModel(params, RHO)
+    weight = [params.weight / 4] * 4
+    assert model.power(weight, (0.0, 0.0, 0.0)) == pytest.approx(158.0, rel=0.01)
+    for t in (0.5, 2.0, params.weight / 4, 7.5):  # both scale as T^1.5 in still air
+        assert model.power([t] * 4, (0, 0, 0)) == pytest.approx(hover.power([t] * 4), rel=1e-12)
+
+
+def test_glauert_induced_velocity_solves_its_relation(model):
+    worst = 0.0
+    for t in (0.3, 3.7, 8.0):
+        vh2 = t * model.inv_2rho_a
+        for v_par in (0.05, 1.0, 4.0, 12.0, 30.0):
+            for v_perp in (-0.45 * math.sqrt(vh2), -0.5, 0.0, 1.0, 6.0):
+                v = model.induced_velocity(t, v_par, v_perp)
+                residual = v * math.sqrt(v_par**2 + (v_perp + v) ** 2) - vh2
+                worst = max(worst, abs(residual) / vh2)
+    assert worst < 1e-9
+    # the high-speed limit: v_i → T / (2ρA·V)
+    assert model.induced_velocity(3.7, 40.0, 0.0) == pytest.approx(
+        3.7 * model.inv_2rho_a / 40.0, rel=0.01
+    )
+    # vortex-ring guard: any faster axial descent is taken at −vrs_limit·v_h
+    vh = math.sqrt(3.7 * model.inv_2rho_a)
+    assert model.ratio(3.7, 0.0, -5 * vh) == model.ratio(3.7, 0.0, -model.vrs * vh) > 0
+
+
+def test_level_flight_power_curve_is_a_bucket(params, model):
+    curve = [level_flight_power(model, params, RHO, v)["power_w"] for v in range(16)]
+    hover = curve[0]
+    best = int(np.argmin(curve))
+    assert 4 <= best <= 9  # minimum power at a moderate airspeed …
+    assert curve[6] < 0.95 * hover  # translational lift: below hover …
+    assert curve[15] > 1.5 * hover  # … and the drag's V³ takes over at high airspeed
+    assert all(b > a for a, b in zip(curve[best:], curve[best + 1 :], strict=False))
+    # the momentum model is airspeed-blind apart from the thrust: it has no bucket
+    momentum = PowerModel(params, RHO)
+    drag = [0.5 * RHO * params.drag_area * v * v for v in range(16)]
+    blind = [momentum.power([math.hypot(params.weight, d) / 4] * 4) for d in drag]
+    assert min(blind) == blind[0]
+
+
+def test_hover_in_wind_costs_less_at_6_and_more_at_11_m_s():
+    power = {}
+    for wind in (0.0, 6.0, 11.0):
+        f = make_flight(wind_speed=wind)
+        f.reset(1, 1)
+        f.hover(4)  # lean into the wind first
+        result = f.hover(4)
+        assert result.failure is None
+        power[wind] = result.energy / result.duration
+    assert power[6.0] < 0.95 * power[0.0]
+    assert power[11.0] > power[6.0]
+    assert power[11.0] > power[0.0]
+
+
+def test_calm_hover_flight_unchanged_by_the_forward_flight_model():
+    energy = {}
+    for name in ("momentum", "forward-flight"):
+        f = make_flight(power_model=name)
+        f.reset(1, 1)
+        energy[name] = f.hover(4).energy
+    assert energy["forward-flight"] == pytest.approx(energy["momentum"], rel=0.01)
+
+
+def test_upwind_legs_cost_far_more_than_downwind_legs():
+    f = make_flight(wind_speed=12.0)  # from the north
+    f.reset(1, 1)
+    f.hover(4)
+    up = f.move(1)  # north, into the wind
+    f.hover(1)
+    down = f.move(4)
+    assert up.arrived and down.arrived
+    assert up.energy > 1.3 * down.energy
+    calm = make_flight()
+    calm.reset(1, 1)
+    out_and_back = calm.move(1).energy + calm.move(4).energy
+    assert up.energy + down.energy > 1.2 * out_and_back
+
+
+class _Recorded:
+    """The flight's interval energy, recording what each tick returns."""
+
+    def __init__(self, interval):
+        self.interval, self.forward, self.values = interval, interval.forward, []
+
+    def __call__(self, *args):
+        self.values.append(self.interval(*args))
+        return self.values[-1]
+
+
+class _PerStep:
+    """``mujoco`` for the flight module, but ``mj_step`` integrates the forward-flight power
+    at every physics step's own state (thrust, attitude, velocity) on the side."""
+
+    def __init__(self, model: ForwardFlightPower, wind):
+        self.model, self.wind, self.energy = model, wind, 0.0
+
+    def __getattr__(self, name):
+        return getattr(mujoco, name)
+
+    def mj_step(self, m, d, nstep=1):
+        for _ in range(nstep):
+            if d.ctrl.any():  # motors on (off after touchdown)
+                R = quat_to_mat(*d.qpos[3:7].tolist())
+                air = air_in_body(d.qvel[:3].tolist(), self.wind, R)
+                self.energy += self.model.power(d.act.tolist(), air) * m.opt.timestep
+            mujoco.mj_step(m, d)
+
+
+@pytest.mark.parametrize("wind", [0.0, 9.0])
+def test_tick_rate_energy_matches_the_per_physics_step_integral(monkeypatch, wind):
+    f = make_flight(wind_speed=wind)  # from the north: the first move flies into it
+    interval = f.interval_energy
+    f.interval_energy = recorder = _Recorded(interval)
+    loads = recorder.values
+    per_step = _PerStep(interval.forward, PhysicsConfig(wind_speed=wind).wind_vector)
+    monkeypatch.setattr(flight_module, "mujoco", per_step)
+    f.reset(1, 1)
+    f.hover(4)  # settle into the wind, not measured
+    loads.clear()
+    per_step.energy = 0.0
+    for cell in (1, 4):  # north into the wind, then back south
+        assert f.move(cell).arrived
+    assert sum(loads) == pytest.approx(per_step.energy, rel=1e-4)  # measured: ≤ 1e-5
+
+
+def test_energy_used_is_the_sum_of_the_ticks():
+    env = gym.make(
+        "cpp_mujoco/MuJoCo-v0", map=GRID, wind_speed=6.0, power_model="forward-flight"
+    ).unwrapped
+    env.reset(seed=0, options={"start": (2, 1), "budget": 10})
+    flight = env.flight
+    drawn = []
+    draw = flight.battery.draw
+    flight.battery.draw = lambda *a: drawn.append(draw(*a)) or drawn[-1]
+    for action in (NORTH, NORTH, SOUTH):
+        _, _, terminated, truncated, info = env.step(action)
+        assert not (terminated or truncated)
+    assert info["energy_used_j"] == pytest.approx(sum(drawn), rel=1e-12)
+    env.close()
+
+
+def test_power_model_option_is_checked():
+    with pytest.raises(ValueError, match="power_model"):
+        PhysicsConfig(power_model="helicopter")
