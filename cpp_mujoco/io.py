@@ -158,6 +158,8 @@ def resolve_named_file(
         if not path.is_file():
             raise error(f"no such {kind} file: {text}")
         return Resolved(path.resolve(), path.stem, bundled=False)
+    if Path(text).expanduser().is_dir():
+        raise error(f"{kind} {text!r} is a folder, not a {suffix} file")
     candidate = bundled / f"{text}{suffix}"
     if not candidate.is_file():
         names = sorted(p.name[: -len(suffix)] for p in bundled.glob(f"*{suffix}"))

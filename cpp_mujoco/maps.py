@@ -89,6 +89,10 @@ class GridMap:
         if not self.target.any():
             raise MapError("map has no target cell (green channel)")
 
+    def __repr__(self) -> str:  # the layers are arrays: a repr of them buries any message
+        h, w = self.shape
+        return f"GridMap({self.label!r}, {h}x{w}, digest {self.digest})"
+
     @cached_property
     def digest(self) -> str:
         """The first 12 hex digits of the SHA-256 of the shape and the three layers."""

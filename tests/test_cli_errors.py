@@ -231,3 +231,24 @@ def test_weather_on_the_grid_backend_is_refused_not_ignored(command, tmp_path, c
     assert code == 2 and len(err.splitlines()) == 1
     assert "--wind-speed" in err and "--backend mujoco" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_folder_given_as_map_or_a_missing_device_is_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "adir").mkdir()
+    assert main(["fly", "--map", "adir", "--planner", "safe-greedy"]) == 2
+    assert "'adir' is a folder" in capsys.readouterr().err
+    code = main(["train", "--map", "C", "--out", str(tmp_path / "run"), "--device", "bogus"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "is not valid; use cpu, cuda" in err
+    assert not (tmp_path / "run").exists()  # refused before the run folder is touched
+
+
+def test_a_rejected_option_with_a_map_object_is_a_short_message():
+    """gymnasium's error repeats the kwargs: a GridMap's repr must not bury it in arrays."""
+    import gymnasium as gym
+
+    with pytest.raises(TypeError) as err:
+        gym.make("cpp_mujoco/MuJoCo-v0", map=load_map("C"), wind_sped=1)
+    assert "wind_sped" in str(err.value) and len(str(err.value)) < 2000
+    assert repr(load_map("C")).startswith("GridMap('C', 16x16, digest ")

@@ -247,3 +247,19 @@ def test_figure_on_a_full_disk_is_a_write_error_and_leaves_nothing(tmp_path, mon
         map_figure(load_map("C"), path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["map.png"]
     assert path.read_bytes() == b"previous figure"
+
+
+def test_a_video_without_its_index_is_recognised(tmp_path):
+    """ffmpeg's exit status is not checked by imageio: a video cut before its index (full disk
+    while finalising) must be caught by looking for the index itself."""
+    from cpp_mujoco.review.rendering import VideoWriter, _has_index
+
+    writer = VideoWriter(tmp_path / "v.mp4", fps=10)
+    for i in range(5):
+        writer.write(np.full((64, 64, 3), 40 * i, dtype=np.uint8))
+    path = writer.close()
+    assert _has_index(path)
+    cut = tmp_path / "cut.mp4"
+    data = path.read_bytes()
+    cut.write_bytes(data[: data.index(b"moov") - 4])
+    assert not _has_index(cut)

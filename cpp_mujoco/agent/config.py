@@ -73,6 +73,7 @@ class TrainConfig:
     threads: int = 0  # torch CPU threads; 0 = all available cores (os.cpu_count())
 
     def __post_init__(self) -> None:
+        _check_device(self.device)
         if self.loss not in ("mse", "huber"):
             raise ValueError(f"loss must be 'mse' or 'huber', got {self.loss!r}")
         if self.n_step < 1:
@@ -129,3 +130,17 @@ class TrainConfig:
     def from_dict(cls, data: dict) -> TrainConfig:
         names = {f.name for f in fields(cls)}
         return cls(**{k: v for k, v in data.items() if k in names})
+
+
+def _check_device(device: str) -> None:
+    """A torch device this machine has, checked before a run folder is touched."""
+    import torch
+
+    try:
+        kind = torch.device(device).type
+    except (RuntimeError, TypeError):
+        raise ValueError(f"device {device!r} is not valid; use cpu, cuda or cuda:N") from None
+    if kind == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"device {device!r}: no CUDA GPU is available to this torch build")
+    if kind not in ("cpu", "cuda"):
+        raise ValueError(f"device {device!r}: only cpu and cuda are supported")

@@ -41,6 +41,7 @@ METRICS = ("energy_j", "budget", "reward", "return", "coverage_ratio")
 # join the blueprint with the first step that carries them, so grid recordings stay as they were
 BATTERY_METRICS = ("state_of_charge", "battery_voltage_v")
 APPLICATION_ID = "cpp_mujoco"
+FLUSH_TIMEOUT_S = 30.0  # a flush that has not finished by then has failed
 FLUSH_SECONDS = 5.0  # wall time between flushes: about what a SIGKILL loses of a mission
 
 
@@ -236,7 +237,7 @@ class MissionRecorder:
             text += f", CRASHED ({info.get('crash_reason') or 'budget exhausted'})"
         self.rec.log("events", rr.TextLog(text, level="WARN" if info.get("crashed") else "INFO"))
         if time.monotonic() - self._flushed >= self.flush_seconds:
-            self.rec.flush()  # to disk now: the batcher's own tick may wait much longer
+            self._flush()  # to disk now: the batcher's own tick may wait much longer
             self._flushed = time.monotonic()
 
     def close(self, interrupted: str | None = None) -> Path:
@@ -250,6 +251,26 @@ class MissionRecorder:
                     f"mission interrupted ({interrupted}); recording ends here", level="ERROR"
                 ),
             )
-        self.rec.flush()
-        self.rec.disconnect()
+        self._flush()  # a WriteError leaves the stream connected: rerun's disconnect would wait
+        self.rec.disconnect()  # forever for a file sink that can no longer write
         return self.path
+
+    def _flush(self) -> None:
+        """Flush to the file; a failed write (full disk, size limit) is a one-line WriteError —
+        rerun's own flush would wait forever for a writer that cannot write."""
+        from cpp_mujoco.io import WriteError, _reason
+
+        try:
+            self.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+        except RuntimeError as exc:  # rerun's file writer died (full disk, file size limit)
+            why = _reason(exc, self.path.parent)
+            raise WriteError(f"cannot write recording {self.path}: {why}") from None
+        try:
+            full = os.statvfs(self.path.parent).f_bavail == 0
+        except OSError:
+            full = False
+        if full:
+            raise WriteError(
+                f"cannot write recording {self.path}: no space left on device; the recording "
+                "holds the mission up to the last flush"
+            )

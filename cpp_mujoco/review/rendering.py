@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cpp_mujoco.io import _umask
+
 GL_BACKENDS = ("egl", "osmesa")
 _GL_MODULE = "mujoco.rendering.classic.gl_context"  # where MuJoCo 3.x binds its GLContext
 _PROBE = (
@@ -219,6 +221,16 @@ def _one_line_error(exc: BaseException, folder: Path) -> BaseException:
     return OSError(f"ffmpeg stopped ({lines[0] if lines else type(exc).__name__})")
 
 
+def _has_index(path: Path) -> bool:
+    """Whether an MP4 has its ``moov`` box (the index ffmpeg writes last): a file cut by a full
+    disk or a size limit lacks it and does not play."""
+    try:
+        with open(path, "rb") as f:
+            return b"moov" in f.read()
+    except OSError:
+        return False
+
+
 class VideoWriter:
     """MP4 (H.264) through imageio-ffmpeg, written to a temporary file beside ``path``.
 
@@ -283,10 +295,13 @@ class VideoWriter:
             self._writer.close()  # ffmpeg writes the index; without it the file does not play
         except Exception as exc:  # noqa: BLE001 - reported as a WriteError by _fail
             self._fail(exc)
+        if self.frames and not _has_index(self._tmp):  # imageio ignores ffmpeg's exit status
+            self._fail(RuntimeError("ffmpeg could not finalise the video (no index written)"))
         if self.frames == 0 or partial:
             if self.frames:
                 try:
                     os.replace(self._tmp, self.partial_path)
+                    os.chmod(self.partial_path, 0o666 & ~_umask())
                 except OSError as exc:
                     self._fail(exc)
             self._target.__exit__(_Abandoned, _Abandoned(), None)
