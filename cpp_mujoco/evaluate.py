@@ -23,6 +23,7 @@ from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.policy import Policy, as_policy
+from cpp_mujoco.policy import policy_name as policy_label
 
 PAPER_LANDING_RATIO = {"A": 0.9937, "B": 0.9978, "C": 0.9826}
 BACKENDS = ("grid", "mujoco")
@@ -208,7 +209,7 @@ def evaluate(
     starts, budget_per_episode = protocol_episodes(grid_map, budgets)
     if budget_per_episode.size == 0:
         raise ValueError("no budgets to evaluate")
-    name = policy_name or getattr(policy, "name", type(policy).__name__)
+    name = policy_name or policy_label(policy)
     bounds = coverage_upper_bounds(grid_map, budget_per_episode, config.fov_side)
     conditions = _conditions(backend, budget_per_episode, config, physics_kwargs)
     if backend == "mujoco":

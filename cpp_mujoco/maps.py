@@ -100,10 +100,11 @@ class GridMap:
         h.update(np.packbits(self.layers).tobytes())
         return h.hexdigest()[:12]
 
-    @property
+    @cached_property
     def label(self) -> str:
         """The name for results and file names: a bundled map's name; another map's name, with
-        its digest when the name is also a bundled map's (a user's ``A.png`` is not map A)."""
+        its digest when the name is also a bundled map's (a user's ``A.png`` is not map A).
+        Cached: deciding it lists the bundled maps' folder."""
         if self.bundled or self.name not in bundled_maps():
             return self.name
         return f"{self.name}-{self.digest[:8]}"

@@ -28,6 +28,7 @@ from cpp_mujoco.episode import run_episode
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
+from cpp_mujoco.policy import policy_name
 
 # the grid backend's clock in the recording: one nominal move per action
 GRID_ACTION_S = PhysicsConfig().move_duration
@@ -106,7 +107,7 @@ def fly_mission(
     def open_review(obs, info) -> None:
         """After the reset (a bad start opens no file): the recording, the flight's cameras."""
         if rrd:
-            about = {"policy": _policy_name(policy), "backend": backend, "budget": budget,
+            about = {"policy": policy_name(policy), "backend": backend, "budget": budget,
                      "start": tuple(start), "seed": seed, **env_kwargs}  # fmt: skip
             review["recorder"] = MissionRecorder(
                 rrd, grid_map, cell_size, altitude, properties=about
@@ -148,7 +149,7 @@ def fly_mission(
     info = episode.info
     return MissionOutcome(
         map=grid_map.label,
-        policy=_policy_name(policy),
+        policy=policy_name(policy),
         backend=backend,
         start=tuple(start),
         budget=budget,
@@ -166,10 +167,6 @@ def fly_mission(
         files=files,
         conditions={"seed": seed, **env_kwargs},
     )
-
-
-def _policy_name(policy) -> str:
-    return str(getattr(policy, "name", type(policy).__name__))
 
 
 def _reason(exc: BaseException) -> str:

@@ -132,3 +132,8 @@ def as_policy(obj: Any) -> Any:
         f"{type(obj).__name__} is not a policy: it needs act(obs) -> actions, SB3's predict(), "
         "or to be callable"
     )
+
+
+def policy_name(policy: object) -> str:
+    """How results name a policy: its ``name`` attribute, else its class name."""
+    return str(getattr(policy, "name", type(policy).__name__))
