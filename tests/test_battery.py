@@ -60,10 +60,13 @@ def test_a_load_the_pack_cannot_deliver_is_a_battery_failure():
     pack = Battery(PackSpec(cell_resistance=0.5, cutoff_v=0.0))
     assert pack.draw(21.0, 0.02) is not None and pack.failure is None
     assert pack.draw(23.0, 0.02) is None and pack.failure == OVERLOAD
-    # with the cut-off, the sag (V_oc/2 at the maximum power) trips it first
+    # the cut-off is a failsafe signal, not a failure: the sag (V_oc/2 at the maximum power)
+    # is flagged, and the pack still delivers
     pack = Battery(SPEC)
-    assert pack.draw(0.99 * pack.ocv**2 / (4 * SPEC.resistance), 0.02) is None
-    assert pack.failure == CUTOFF
+    assert pack.draw(0.1 * pack.ocv**2 / (4 * SPEC.resistance), 0.02) is not None
+    assert not pack.below_cutoff
+    assert pack.draw(0.99 * pack.ocv**2 / (4 * SPEC.resistance), 0.02) is not None
+    assert pack.below_cutoff and pack.failure is None
     assert pack_current(10.0, 1.0, 25.0) == pytest.approx(5.0)  # the double root
     assert pack_current(10.0, 1.0, 25.0001) is None
 
@@ -173,7 +176,7 @@ def test_calm_unit_is_energy_drawn_from_the_pack():
     assert 1.01 < real / ideal < 1.03
 
 
-def test_cut_off_ends_the_flight_as_a_battery_crash():
+def test_cut_off_lands_where_the_uav_is_and_ends_as_a_battery_crash():
     # 3.95 V per cell under load is reached near SOC 0.85: within the first units of the budget
     env = MuJoCoEnv(map=OPEN, battery_cutoff_v=3.95)
     _, info = env.reset(seed=0, options={"start": (2, 2), "budget": 10})
@@ -183,6 +186,10 @@ def test_cut_off_ends_the_flight_as_a_battery_crash():
         steps += 1
     assert info["crashed"] and info["crash_reason"] == CUTOFF
     assert info["crash_reason"].startswith("battery")
+    assert not info["landed"]
+    flight = env.flight
+    assert flight._ground_contact() is True  # on its skids: the failsafe landed it, upright
+    assert flight.nfz_violations == 0
     assert info["budget"] > 0  # the voltage ended it, not the budget
     assert 0.7 < info["state_of_charge"] < 0.95
     assert steps < 10

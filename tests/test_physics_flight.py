@@ -14,7 +14,7 @@ from cpp_mujoco.physics.arena import GridGeometry, build_arena, compile_arena
 from cpp_mujoco.physics.calibration import calibration, unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.env import MuJoCoEnv
-from cpp_mujoco.physics.flight import Flight
+from cpp_mujoco.physics.flight import EMERGENCY_LANDING, Flight
 
 CONFIG = PhysicsConfig()
 OPEN = GridMap.from_ascii(["TTTTT", "TTTTT", "TTLTT", "TTTTT", "TTTTT"], name="open")
@@ -149,17 +149,25 @@ def test_random_actions_never_enter_no_fly_airspace():
         assert rejected > 0  # the safety controller was exercised
 
 
-def test_emptied_battery_ends_in_a_crash():
-    env = gym.make("cpp_mujoco/MuJoCo-v0", map=OPEN, wind_speed=8.0, wind_direction=0.0)
+def test_budget_spent_mid_move_lands_where_the_uav_is_and_ends_in_a_crash():
+    env = gym.make("cpp_mujoco/MuJoCo-v0", map=OPEN, wind_speed=12.0, wind_direction=0.0)
     env.reset(seed=0, options={"start": (2, 2), "budget": 1})
-    obs, reward, terminated, truncated, info = env.step(NORTH)  # headwind: > 1 unit
+    flight = env.unwrapped.flight
+    flight.trace = []
+    obs, reward, terminated, truncated, info = env.step(NORTH)  # 12 m/s headwind: > 1 unit
     assert terminated and not truncated
     assert info["crashed"] and not info["landed"]
-    assert info["crash_reason"].startswith("battery empty")
+    assert info["crash_reason"] == EMERGENCY_LANDING
     assert info["budget"] == 0
     newly_seen = int((obs["coverage"].astype(bool) & OPEN.target).sum())
     assert reward == pytest.approx(0.4 * newly_seen - 0.2 - 150.0)
-    assert env.unwrapped.data.qpos[2] < 1.0  # it fell to the ground
+    # the failsafe landed it upright on its skids, on the reserve, between the two cells
+    assert flight._ground_contact() is True
+    assert info["energy_used_j"] > flight.capacity
+    trace = np.array(flight.trace)
+    along, across = np.abs(trace[-1, 1:3] - trace[0, 1:3])[::-1]  # north, east
+    assert 0.3 < along < flight.config.cell_size - 0.3  # down between the cells, not at either
+    assert across < 0.2
 
 
 def test_budget_reaching_zero_unlanded_is_a_crash():

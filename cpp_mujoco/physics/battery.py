@@ -1,13 +1,14 @@
 """A LiPo pack between the rotors and the budget: open-circuit voltage, internal resistance,
-cut-off.
+cut-off failsafe.
 
 Why: the budget is energy drawn from the pack, and a pack does not hand out its energy at the
 same price at every load. With open-circuit voltage V_oc(SOC) and a series resistance R, a load
 of P watts draws the current I = (V_oc − √(V_oc² − 4RP)) / (2R) (the smaller root of
 V_oc·I − I²R = P); the chemical energy removed is V_oc·I·dt = P·dt + I²R·dt, so the fraction
 lost in the pack, I·R / V_oc, grows with the load. The terminal voltage V_oc − I·R sags under
-load; below the cut-off the flight ends (motors cut), and a load above V_oc² / 4R cannot be
-delivered at all.
+load; below the cut-off the autopilot's battery failsafe lands where the UAV is (the flight
+reads :attr:`Battery.below_cutoff`; the pack keeps delivering, as a real one does), and a load
+above V_oc² / 4R cannot be delivered at all: then the motors stop.
 
 Budget semantics: an episode's pack holds exactly its budget of drawable energy between full
 charge (SOC 1) and ``reserve``; the capacity in coulombs follows from that energy, while the
@@ -29,7 +30,7 @@ from dataclasses import dataclass
 _A, _B = 1.031, 35.0
 _C = (3.685, 0.2156, -0.1178, 0.3201)
 
-CUTOFF = "battery voltage under the cut-off: motors cut, the UAV fell"
+CUTOFF = "battery voltage under the cut-off: emergency landing where it was"
 OVERLOAD = "battery cannot deliver the power: motors cut, the UAV fell"
 
 
@@ -104,7 +105,8 @@ class Battery:
 
     ``draw(power, dt)`` takes the load's electrical power (W, whatever model computes it) and
     returns the chemical energy removed (J), or None when the pack cannot carry the load (then
-    :attr:`failure` says why and nothing is drawn). ``drawn_j = load_j + loss_j`` holds to
+    :attr:`failure` says why and nothing is drawn). :attr:`below_cutoff` says whether the last
+    tick's terminal voltage sagged under the cut-off. ``drawn_j = load_j + loss_j`` holds to
     rounding: the three are accumulated from the same current.
     """
 
@@ -125,6 +127,7 @@ class Battery:
         self.current = 0.0
         self.drawn_j = self.load_j = self.loss_j = 0.0
         self.failure: str | None = None
+        self.below_cutoff = False
 
     @property
     def ocv(self) -> float:
@@ -157,10 +160,6 @@ class Battery:
             if current is None:
                 self.failure = OVERLOAD
                 return None
-        if v - current * r < n * s.cutoff_v:
-            self.failure = CUTOFF
-            self.current = current  # the sag that tripped it
-            return None
         if not math.isinf(q) and current > 0.0:
             s1 = s0 - current * dt / q
             v = n * (cell_ocv_integral(s0) - cell_ocv_integral(s1)) / (s0 - s1)
@@ -168,6 +167,7 @@ class Battery:
         chem = v * current * dt  # = n·q·(F(s0) − F(s1)) exactly, = load + loss to rounding
         self.soc = max(s1, 0.0)
         self.current = current
+        self.below_cutoff = v - current * r < n * s.cutoff_v
         self.drawn_j += chem
         self.load_j += power * dt if power > 0.0 else 0.0
         self.loss_j += loss

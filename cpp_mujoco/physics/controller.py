@@ -92,6 +92,7 @@ class GeometricController:
         self.A_inv = tuple(tuple(float(v) for v in row) for row in np.linalg.inv(A))
         self.f_max = params.max_thrust
         self.min_fz = 0.1 * m * GRAVITY
+        self.weight = m * GRAVITY
         self.integral = (0.0, 0.0, 0.0)
         self.obs_tau, self.obs_limit = g.observer_tau, g.observer_limit
         self.lead = g.feedforward_lead
@@ -151,6 +152,11 @@ class GeometricController:
             fz = self.min_fz
         horiz2 = fx * fx + fy * fy
         cap = fz * self.tan_tilt
+        if horiz2 > cap * cap:
+            # a sinking reference leaves little thrust to tilt: give up sink rate first (never
+            # lifting more than the weight), as holding the track beats descending fast
+            fz = min(math.sqrt(horiz2) / self.tan_tilt, max(fz, self.weight))
+            cap = fz * self.tan_tilt
         if horiz2 > cap * cap:  # limit the tilt, keep the vertical component
             scale = cap / math.sqrt(horiz2)
             fx, fy = fx * scale, fy * scale

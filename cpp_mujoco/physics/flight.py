@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.battery import Battery, PackSpec
+from cpp_mujoco.physics.battery import CUTOFF, Battery, PackSpec
 from cpp_mujoco.physics.camera import CoverageCamera, Polygon
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.controller import GeometricController, MinJerk
@@ -33,6 +33,7 @@ from cpp_mujoco.physics.quadrotor import QuadrotorParams
 from cpp_mujoco.physics.wind import QuadraticDrag, Wind
 
 Reference = Callable[[float], tuple]
+EMERGENCY_LANDING = "budget exhausted in flight: emergency landing where it was"
 
 
 @dataclass
@@ -189,8 +190,15 @@ class Flight:
         """Descend over ``cell`` and touch down; touchdown is a landing-gear/ground contact."""
         c = self.config
         x, y, _ = self.waypoint(cell)
+        ref = self._descent(self.position, x, y)
+        return self._fly(ref, (x, y, self.touch_z), c.land_duration, c.land_time_limit, land=True)
+
+    def _descent(self, start, x: float, y: float) -> Reference:
+        """Minimum-jerk descent from ``start`` to a flare just above the ground at (x, y), then
+        a constant sink until the landing gear touches."""
+        c = self.config
         flare = self.touch_z + 0.3
-        descent = MinJerk(self.position, (x, y, flare), c.land_duration, self.controller.lead)
+        descent = MinJerk(start, (x, y, flare), c.land_duration, self.controller.lead)
         speed = c.land_speed
 
         def ref(t: float):
@@ -198,7 +206,13 @@ class Flight:
                 return descent(t)
             return (x, y, flare - speed * (t - c.land_duration)), (0.0, 0.0, -speed), (0, 0, 0)
 
-        return self._fly(ref, (x, y, self.touch_z), c.land_duration, c.land_time_limit, land=True)
+        return ref
+
+    def _emergency_descent(self, pos) -> Reference:
+        """The battery failsafe of a real autopilot (PX4 ``COM_LOW_BAT_ACT`` "Land", ArduPilot
+        ``BATT_FS_CRT_ACT`` "Land"): land straight down where the UAV is, on the pack's reserve,
+        rather than cutting the motors and falling across whatever airspace lies downwind."""
+        return self._descent(pos, pos[0], pos[1])
 
     # ------------------------------------------------------------------ the loop
     def _fly(self, ref: Reference, goal, nominal, limit, arrive=False, land=False) -> ActionResult:
@@ -217,6 +231,7 @@ class Flight:
         zero = [0.0, 0.0, 0.0, 0.0]
         trace, warn, bad0, cos_flip = self.trace, self._warn_badqacc, self._bad0, self.cos_flip
         step, t = mujoco.mj_step, 0.0
+        emergency: str | None = None  # why the battery failsafe is landing the UAV
         while True:
             qp = qpos.tolist()
             qv = qvel.tolist()
@@ -249,16 +264,19 @@ class Flight:
             # ---- done?
             if not self.motors_on:
                 if self._ground_contact() is not None or t >= self.config.fall_time_limit:
-                    out.failure = battery.failure or "battery empty: motors cut, the UAV fell"
+                    out.failure = battery.failure
                     break
             elif land:
                 touch = self._ground_contact()
                 if touch is not None:
-                    if touch:
-                        out.landed = out.arrived = True
+                    if not touch:
+                        out.failure = "hit the ground with the airframe, not the landing gear"
+                    elif emergency is not None:
+                        out.failure = emergency
                         self._settle()
                     else:
-                        out.failure = "hit the ground with the airframe, not the landing gear"
+                        out.landed = out.arrived = True
+                        self._settle()
                     break
                 if t >= limit:
                     out.failure = "no touchdown within the landing time limit"
@@ -280,16 +298,19 @@ class Flight:
                 f = controller(pos, vel, R, qv[3:], p_ref, v_ref, a_ref, dt)
                 e = energy_of(thrusts, f, air_in_body(vel, w, R) if airspeed_power else None)
                 e = battery.draw(e / dt, dt)  # J from the pack: the load plus its I²R loss
-                # the pack sags under the cut-off or cannot carry the load (None), or the
-                # budget's energy runs out in this tick
-                if e is None or self.energy_used + e >= self.capacity:
-                    if e is not None:
-                        self.energy_used = self.capacity
+                if e is None:  # the pack cannot carry the load: the motors stop
                     self.motors_on = False
                     battery.idle()
                     f, t = zero, 0.0  # the fall gets its own time limit
                 else:
                     self.energy_used += e
+                    if emergency is None and (
+                        battery.below_cutoff or self.energy_used >= self.capacity
+                    ):  # the battery failsafe: land where it is, on the reserve
+                        emergency = CUTOFF if battery.below_cutoff else EMERGENCY_LANDING
+                        land, t, limit = True, 0.0, self.config.land_time_limit
+                        ref = self._emergency_descent(pos)
+                        goal = (pos[0], pos[1], self.touch_z)
             else:
                 f = zero
             ctrl[:] = f
