@@ -217,11 +217,15 @@ print(json.dumps(out))
 """
 
 
-def run_isolated(code: str, timeout: float = 120) -> str:
-    """Run ``code`` in a fresh interpreter; a hang fails the test (its workers are killed too)."""
+def run_isolated(code: str, timeout: float = 120, script=None) -> str:
+    """Run ``code`` in a fresh interpreter (as the file ``script`` if given); a hang fails the
+    test (its workers are killed too)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    if script is not None:
+        script.write_text(code)
+    command = [sys.executable, str(script)] if script is not None else [sys.executable, "-c", code]
     proc = subprocess.Popen(
-        [sys.executable, "-c", code], cwd=ROOT, env=env, text=True, start_new_session=True,
+        command, cwd=ROOT, env=env, text=True, start_new_session=True,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )  # fmt: skip
     try:
@@ -232,6 +236,29 @@ def run_isolated(code: str, timeout: float = 120) -> str:
         pytest.fail(f"hung: no result after {timeout} s")
     assert proc.returncode == 0, stderr[-2000:]
     return stdout.strip().splitlines()[-1]
+
+
+_NO_MAIN_GUARD = """
+import json
+from cpp_mujoco.agent import load_agent
+from cpp_mujoco.evaluate import evaluate
+
+try:  # at import, without `if __name__ == "__main__":` — every spawned worker re-runs this
+    evaluate(load_agent("A"), "A", backend="mujoco", budgets=[25], workers=2, progress=False)
+    print(json.dumps(["no error", []]))
+except Exception as exc:
+    if __name__ == "__mp_main__":
+        raise  # a spawned worker re-running this file: fail as such a script does
+    print(json.dumps([type(exc).__name__, getattr(exc, "__notes__", [])]))
+"""
+
+
+def test_a_script_without_a_main_guard_gets_an_error_not_a_hang(tmp_path):
+    """The policy (a 4.8 MB network here) no longer rides in spawn's pipe handshake, where a
+    worker that died re-running the script left the parent blocked forever."""
+    kind, notes = json.loads(run_isolated(_NO_MAIN_GUARD, script=tmp_path / "no_guard.py"))
+    assert kind == "BrokenProcessPool"
+    assert any('if __name__ == "__main__":' in note for note in notes)
 
 
 def test_worker_failures_end_the_run_with_the_workers_error():

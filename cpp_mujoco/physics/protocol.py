@@ -17,14 +17,18 @@ import multiprocessing as mp
 import os
 import pickle
 import sys
+import tempfile
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cpp_mujoco.episode import EpisodeRecord, run_episode
+from cpp_mujoco.io import atomic_write_bytes
 
 _WORKER: dict[str, Any] = {}
 TASKS_PER_SUBMIT = 2  # episodes per worker task: small, so a failure ends the run quickly
@@ -57,18 +61,20 @@ def one_torch_thread() -> Iterator[None]:
         torch.set_num_threads(before)
 
 
-def _init_worker(payload: bytes, grid_map, env_kwargs: dict) -> None:
-    """Only store the arguments (nothing here may fail: see the module docstring)."""
-    _WORKER.update(payload=payload, grid_map=grid_map, env_kwargs=env_kwargs)
+def _init_worker(job_path: str) -> None:
+    """Only store the job file's path (nothing here may fail: see the module docstring)."""
+    _WORKER["job_path"] = job_path
 
 
 def _fly_tasks(tasks: list[Task]) -> list[EpisodeRecord]:
     """Worker entry: build env and policy on first use, then fly ``tasks``."""
     if "env" not in _WORKER:
-        _WORKER["policy"] = pickle.loads(_WORKER["payload"])
+        with open(_WORKER["job_path"], "rb") as job:
+            payload, grid_map, env_kwargs = pickle.load(job)
+        _WORKER["policy"] = pickle.loads(payload)
         if "torch" in sys.modules:  # a worker's own process: one thread for good
             sys.modules["torch"].set_num_threads(1)
-        _WORKER["env"] = make_env(_WORKER["grid_map"], _WORKER["env_kwargs"])
+        _WORKER["env"] = make_env(grid_map, env_kwargs)
     return [fly_one(_WORKER["env"], _WORKER["policy"], task) for task in tasks]
 
 
@@ -129,9 +135,21 @@ def fly_episodes(
 
 
 def _fly_in_pool(payload, grid_map, env_kwargs, tasks, workers, bar) -> list[EpisodeRecord]:
+    """The workers get the policy, map and options from a job file, not as initializer
+    arguments: spawn writes those into a pipe before the child reads them, and a child that dies
+    first (a user script without the ``__main__`` guard re-runs itself there) leaves that write
+    blocked forever once it exceeds the pipe's 64 KiB — a network's weights do. A path never
+    does, so the dead child surfaces as ``BrokenProcessPool``."""
     ctx = mp.get_context("spawn")  # torch's threads do not survive fork
+    with tempfile.TemporaryDirectory(prefix="cpp_mujoco_workers_") as folder:
+        job = Path(folder) / "job.pickle"
+        atomic_write_bytes(job, pickle.dumps((payload, grid_map, env_kwargs)))
+        return _run_pool(ctx, str(job), tasks, workers, bar)
+
+
+def _run_pool(ctx, job: str, tasks, workers, bar) -> list[EpisodeRecord]:
     records: list[EpisodeRecord] = []
-    pool = ProcessPoolExecutor(workers, ctx, _init_worker, (payload, grid_map, env_kwargs))
+    pool = ProcessPoolExecutor(workers, ctx, _init_worker, (job,))
     try:
         pending: set[Future] = {
             pool.submit(_fly_tasks, tasks[i : i + TASKS_PER_SUBMIT])
@@ -143,6 +161,13 @@ def _fly_in_pool(payload, grid_map, env_kwargs, tasks, workers, bar) -> list[Epi
                 batch = future.result()  # re-raises the worker's exception
                 records.extend(batch)
                 bar.update(len(batch))
+    except BrokenProcessPool as exc:
+        exc.add_note(
+            "a physics worker died before it returned: killed (out of memory?), or the calling "
+            "script runs its work at import: workers are spawned and import the main module, "
+            "so put the script's work under `if __name__ == \"__main__\":`"
+        )
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     return records
