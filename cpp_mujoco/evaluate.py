@@ -104,6 +104,7 @@ class EvaluationResult:
             physics = {
                 "energy_per_action_j": float((self.physics["energy_used_j"] / moves).mean()),
                 "nfz_violations": int(self.physics["nfz_violations"].sum()),
+                "max_track_error_m": float(self.physics["max_track_error_m"].max()),
                 "crashes": int(self.physics["crashed"].sum()),
                 "mean_flight_time_s": float(self.physics["flight_time_s"].mean()),
             }
@@ -345,3 +346,27 @@ def _run_physics(
     conditions["physics_config"] = asdict(env.config)
     records = fly_episodes(policy, grid_map, starts, budgets, workers, progress, env_kwargs, env)
     return records_to_arrays(records)
+
+
+def split_conditions(conditions: list[dict]) -> tuple[dict, list[dict]]:
+    """(what every row's conditions share, what each row has of its own), nested dicts split
+    key by key — so a sweep's rows carry their wind and nothing else."""
+    shared: dict = {}
+    own: list[dict] = [{} for _ in conditions]
+    missing = object()
+    for key in dict.fromkeys(k for c in conditions for k in c):
+        values = [c.get(key, missing) for c in conditions]
+        if all(v == values[0] for v in values):
+            shared[key] = values[0]
+        elif all(isinstance(v, dict) for v in values):
+            inner_shared, inner_own = split_conditions(values)
+            if inner_shared:
+                shared[key] = inner_shared
+            for row, part in zip(own, inner_own, strict=True):
+                if part:
+                    row[key] = part
+        else:
+            for row, v in zip(own, values, strict=True):
+                if v is not missing:
+                    row[key] = v
+    return shared, own

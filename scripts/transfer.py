@@ -1,9 +1,15 @@
-"""Grid → MuJoCo transfer results: the grid-vs-physics table per map and the wind sweep.
+"""Grid → MuJoCo transfer results: the grid-vs-physics table, per-action energy, the wind sweep.
 
 Regenerates everything the README's transfer section shows:
-    python scripts/transfer.py                  # full protocol in MuJoCo, sweep every 5th budget
-    python scripts/transfer.py --budget-step 5  # quicker: every 5th budget everywhere
+    python scripts/transfer.py                  # calm: full protocol; sweep: every 10th budget
+    python scripts/transfer.py --budget-step 5  # quicker transfer table
 Writes out/transfer/{transfer.md, transfer.json, wind_sweep.png, coverage_*.png}.
+
+The sweep flies the bundled agent and the safe greedy planner at 0, 3, 6, 9 and 12 m/s, the wind
+from N, E, S and W with the budgets dealt round-robin to them, in moderate Dryden turbulence
+(``--turbulence``). The energy table flies single actions on an open map
+(:mod:`cpp_mujoco.physics.action_energy`): steady wind, and the mean over ``--repeats`` gust
+histories in the sweep's turbulence.
 """
 
 from __future__ import annotations
@@ -14,63 +20,101 @@ from pathlib import Path
 
 from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.physics.action_energy import KINDS, action_energy_table
+from cpp_mujoco.physics.calibration import unit_energy
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.turbulence import LEVELS
 from cpp_mujoco.review.plots import coverage_figure, wind_sweep_figure
 from cpp_mujoco.review.results import (
+    RATED_COLUMNS,
     TRANSFER_COLUMNS,
-    WIND_COLUMNS,
     Table,
     demo_policies,
     file_part,
+    rated_row,
     transfer_row,
-    wind_row,
     write_rendered,
     write_tables,
 )
+from cpp_mujoco.wind_protocol import COMPASS_NAMES, evaluate_in_winds
 
-WINDS = (0.0, 3.0, 6.0, 9.0)
+WINDS = (0.0, 3.0, 6.0, 9.0, 12.0)
+
+
+def energy_table(turbulence: str, repeats: int) -> Table:
+    """Battery energy per action in budget units (a calm move's calibrated energy)."""
+    config = PhysicsConfig()
+    unit = unit_energy(config)
+    steady = action_energy_table(config, WINDS)
+    gusty = action_energy_table(config, WINDS, turbulence=turbulence, repeats=repeats)
+    columns = ["wind m/s", "from", *KINDS]
+    if turbulence != "none":
+        columns += [f"{k} ({turbulence})" for k in KINDS]
+    table = Table(f"energy per action, budget units of {unit:.1f} J", columns)
+    for a, b in zip(steady, gusty, strict=True):
+        row = {
+            "wind m/s": f"{a.wind_speed:g}",
+            "from": COMPASS_NAMES[a.wind_direction] if a.wind_speed else "-",
+            **{k: f"{a.mean_j[k] / unit:.3f}" if k in a.mean_j else "-" for k in KINDS},
+            "values": {"steady": vars(a), turbulence: vars(b), "unit_energy_j": unit},
+            "conditions": {"physics_config": {"wind_speed": a.wind_speed,
+                                              "wind_direction": a.wind_direction}},
+        }  # fmt: skip
+        if turbulence != "none":
+            for k in KINDS:
+                if k in b.mean_j:
+                    row[f"{k} ({turbulence})"] = (
+                        f"{b.mean_j[k] / unit:.2f} ± {b.std_j[k] / unit:.2f}"
+                    )
+        table.rows.append(row)
+    return table
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--maps", nargs="+", default=bundled_maps(), help="names or PNG paths")
     parser.add_argument("--budget-step", type=int, default=1, help="MuJoCo protocol budgets step")
-    parser.add_argument("--sweep-step", type=int, default=5, help="wind sweep budgets step")
-    parser.add_argument("--gust-std", type=float, default=1.0, help="gusts in the wind sweep")
+    parser.add_argument("--sweep-step", type=int, default=10, help="wind sweep budgets step")
+    parser.add_argument("--turbulence", default="moderate", choices=LEVELS, help="in the sweep")
+    parser.add_argument("--repeats", type=int, default=5, help="gust histories per energy row")
     parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
     parser.add_argument("--out", default="out/transfer", help="output folder")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     progress = sys.stderr.isatty()
-    grid_maps = [load_map(m) for m in args.maps]
+    energy = energy_table(args.turbulence, args.repeats)
+    print(energy.render(), flush=True)
     transfer = Table("grid vs MuJoCo, the same episodes", TRANSFER_COLUMNS)
-    wind = Table("MuJoCo under steady wind and gusts", WIND_COLUMNS)
+    wind = Table(f"MuJoCo under wind + {args.turbulence} turbulence", RATED_COLUMNS)
     sweep = []
-    for grid_map in grid_maps:
-        map_name = grid_map.label
-        name, policy = demo_policies(grid_map)[0]  # the bundled agent where there is one
+    for grid_map in map(load_map, args.maps):
+        policies = demo_policies(grid_map)
+        name, policy = policies[0]  # the bundled agent where there is one
         budgets = protocol_budgets(step=args.budget_step)
         grid = evaluate(policy, grid_map, budgets=budgets, policy_name=name)
         physics = evaluate(policy, grid_map, backend="mujoco", budgets=budgets,
                            policy_name=name, workers=args.workers, progress=progress)  # fmt: skip
         transfer.rows.append(transfer_row(grid, physics))
-        coverage_figure([grid, physics], out / f"coverage_{file_part(map_name)}.png")
-        sweep_budgets = protocol_budgets(step=args.sweep_step)
-        for speed in WINDS:
-            result = evaluate(
-                policy, grid_map, backend="mujoco", budgets=sweep_budgets, policy_name=name,
-                workers=args.workers, progress=progress,
-                env_kwargs={"wind_speed": speed, "gust_std": args.gust_std if speed else 0.0},
-            )  # fmt: skip
-            sweep.append(result)
-            wind.rows.append(wind_row(result))
+        coverage_figure([grid, physics], out / f"coverage_{file_part(grid_map.label)}.png")
+        print(transfer.render().splitlines()[-1], flush=True)
+        for name, policy in policies:
+            for speed in WINDS:
+                result = evaluate_in_winds(
+                    policy, grid_map, speed, turbulence=args.turbulence if speed else "none",
+                    budgets=protocol_budgets(step=args.sweep_step), policy_name=name,
+                    workers=args.workers, progress=progress,
+                )  # fmt: skip
+                sweep.append(result)
+                wind.rows.append(rated_row(result))
+                print(wind.render().splitlines()[-1], flush=True)
     print(transfer.render())
     print()
     print(wind.render())
-    tables = {"transfer": transfer, "wind": wind}
+    tables = {"energy": energy, "transfer": transfer, "wind": wind}
     write_tables(out / "transfer.json", tables)
     write_rendered(out / "transfer.md", tables, "markdown")
-    wind_sweep_figure(sweep, out / "wind_sweep.png", args.gust_std)
+    wind_sweep_figure(sweep, out / "wind_sweep.png")
     print(f"\nwritten: {out}/transfer.md, transfer.json, wind_sweep.png, coverage_*.png")
 
 

@@ -13,7 +13,7 @@ import cpp_mujoco.physics.flight as flight_module
 from cpp_mujoco.grid.actions import NORTH, SOUTH
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.arena import build_arena, compile_arena
-from cpp_mujoco.physics.calibration import _airframe
+from cpp_mujoco.physics.calibration import _airframe, unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.energy import (
     ForwardFlightPower,
@@ -188,3 +188,21 @@ def test_energy_used_is_the_sum_of_the_ticks():
 def test_power_model_option_is_checked():
     with pytest.raises(ValueError, match="power_model"):
         PhysicsConfig(power_model="helicopter")
+
+
+def test_a_move_costs_most_upwind_least_downwind_alike_from_every_direction():
+    """The per-action energy table's figures (``scripts/transfer.py``): in a steady 9 m/s wind
+    the airframe pays for the headwind leg; turning the wind by 90° turns nothing else."""
+    from cpp_mujoco.physics.action_energy import action_energy
+
+    north = action_energy(PhysicsConfig(wind_speed=9.0, wind_direction=0.0))
+    east = action_energy(PhysicsConfig(wind_speed=9.0, wind_direction=90.0))
+    up, cross, down = (north.mean_j[k] for k in ("upwind", "crosswind", "downwind"))
+    assert up > 1.08 * cross and cross > 1.05 * down
+    assert north.samples == {"upwind": 2, "downwind": 2, "crosswind": 4, "hover": 1, "land": 1}
+    for kind, joules in north.mean_j.items():
+        assert east.mean_j[kind] == pytest.approx(joules, rel=0.01), kind
+    calm = action_energy(PhysicsConfig())
+    assert set(calm.mean_j) == {"crosswind", "hover", "land"}  # no wind to face
+    assert calm.mean_j["crosswind"] == pytest.approx(unit_energy(PhysicsConfig()), rel=0.05)
+    assert calm.mean_j["land"] < calm.mean_j["crosswind"]  # a landing costs less than a unit

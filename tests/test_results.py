@@ -135,7 +135,7 @@ result = evaluate(SafeGreedyPlanner(), small, budgets=[5, 9])
 plots.map_figure(small, out + "/map.png")
 plots.trajectories_figure(result, out + "/traj.png")
 plots.coverage_figure([result], out + "/coverage.png")
-plots.wind_sweep_figure([result], out + "/wind.png", gust_std=1.0)
+plots.wind_sweep_figure([result], out + "/wind.png")
 print("matplotlib.pyplot" in sys.modules, matplotlib.rcParams._get("backend"))
 """
 

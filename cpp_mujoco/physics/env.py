@@ -155,6 +155,7 @@ class MuJoCoEnv(SingleGridEnv):
             "energy_used_j": float(f.energy_used),
             "flight_time_s": float(f.time),
             "nfz_violations": int(f.nfz_violations),
+            "max_track_error_m": float(f.max_track_error),
             "tracking_error_m": float(self._last.tracking_error),
             "state_of_charge": float(f.battery.soc),
             "battery_voltage_v": float(f.battery.voltage),

@@ -150,6 +150,9 @@ class Flight:
         self.energy_used = 0.0
         self.motors_on = True
         self.nfz_violations = 0
+        # m, the largest horizontal distance from the controller's reference this episode: the
+        # margin a no-fly cell's border (half a cell from every reference) must keep
+        self.max_track_error = 0.0
         self.camera.reset()
         self.coverage[:] = False
         self._bad0 = self._warn_badqacc.number
@@ -231,6 +234,7 @@ class Flight:
         zero = [0.0, 0.0, 0.0, 0.0]
         trace, warn, bad0, cos_flip = self.trace, self._warn_badqacc, self._bad0, self.cos_flip
         step, t = mujoco.mj_step, 0.0
+        worst2 = self.max_track_error**2
         emergency: str | None = None  # why the battery failsafe is landing the UAV
         while True:
             qp = qpos.tolist()
@@ -254,7 +258,10 @@ class Flight:
             p_ref, v_ref, a_ref = ref(t)
             if failure is None and self.motors_on:
                 ex, ey, ez = pos[0] - p_ref[0], pos[1] - p_ref[1], pos[2] - p_ref[2]
-                if ex * ex + ey * ey + ez * ez > max_err2:
+                off2 = ex * ex + ey * ey
+                if off2 > worst2:
+                    worst2 = off2
+                if off2 + ez * ez > max_err2:
                     failure = "diverged from the reference"
             if failure is not None:
                 out.failure = failure
@@ -317,6 +324,7 @@ class Flight:
             xfrc[:3] = drag(vel, w)
             step(m, d, k)
             t += dt
+        self.max_track_error = math.sqrt(worst2)
         out.newly_seen += self.frame()
         out.duration = self.time - t0
         out.energy = self.energy_used - e0

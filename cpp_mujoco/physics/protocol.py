@@ -165,7 +165,7 @@ def _run_pool(ctx, job: str, tasks, workers, bar) -> list[EpisodeRecord]:
         exc.add_note(
             "a physics worker died before it returned: killed (out of memory?), or the calling "
             "script runs its work at import: workers are spawned and import the main module, "
-            "so put the script's work under `if __name__ == \"__main__\":`"
+            'so put the script\'s work under `if __name__ == "__main__":`'
         )
         raise
     finally:
@@ -196,6 +196,7 @@ def records_to_arrays(records: list[EpisodeRecord]) -> dict[str, Any]:
             "energy_used_j": final("energy_used_j"),
             "flight_time_s": final("flight_time_s"),
             "nfz_violations": final("nfz_violations", np.int64),
+            "max_track_error_m": final("max_track_error_m"),
             "crashed": final("crashed", bool),
             "crash_reason": np.array([r.info["crash_reason"] or "" for r in records]),
         },

@@ -139,24 +139,30 @@ def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike
     return _save(fig, path)
 
 
-def wind_sweep_figure(
-    results: Sequence[EvaluationResult], path: str | os.PathLike, gust_std: float
-) -> Path:
-    """Landing and coverage ratio against the steady wind, one line per map (MuJoCo results,
-    each flown in one wind; the wind is read from the result's conditions)."""
-    from cpp_mujoco.review.results import wind_speed
+def wind_sweep_figure(results: Sequence[EvaluationResult], path: str | os.PathLike) -> Path:
+    """Landing and coverage ratio against the steady wind, one line per map and policy (MuJoCo
+    results; the wind and the weather are read from each result's conditions)."""
+    from cpp_mujoco.review.results import weather, wind_speed
 
-    fig = Figure(figsize=(10, 4))
+    fig = Figure(figsize=(11, 4.2))
     axes = fig.subplots(1, 2)
-    for label in dict.fromkeys(r.map_name for r in results):
-        entries = sorted((r for r in results if r.map_name == label), key=wind_speed)
+    for key in dict.fromkeys((r.map_name, r.policy_name) for r in results):
+        entries = sorted((r for r in results if (r.map_name, r.policy_name) == key), key=wind_speed)
         winds = [wind_speed(r) for r in entries]
-        axes[0].plot(winds, [r.landing_ratio for r in entries], "o-", label=f"map {label}")
-        axes[1].plot(winds, [r.coverage_ratio for r in entries], "o-", label=f"map {label}")
+        style = "o-" if key[1].startswith("ddqn") else "s--"
+        label = f"map {key[0]}, {key[1]}"
+        axes[0].plot(winds, [r.landing_ratio for r in entries], style, label=label)
+        axes[1].plot(winds, [r.coverage_ratio for r in entries], style, label=label)
+    extras = sorted({weather(r).partition(" + ")[2] for r in results if wind_speed(r)} - {""})
+    extra = f" (above 0: + {', '.join(extras)})" if extras else ""
     for ax, name in zip(axes, ("landing ratio", "coverage ratio"), strict=True):
-        ax.set_xlabel(f"steady wind, m/s (gusts σ = {gust_std:.1f} m/s)")
+        ax.set_xlabel(f"steady wind, m/s{extra}")
         ax.set_ylabel(name)
         ax.grid(alpha=0.3)
-        ax.legend()
-    fig.suptitle("Grid-trained agents in MuJoCo under wind")
+    axes[1].legend(fontsize=7, loc="best")
+    episodes = sorted({int(r.landed.size) for r in results})
+    fig.suptitle(
+        f"MuJoCo under wind ({'/'.join(map(str, episodes))} episodes per point; the wind from "
+        "N, E, S and W, the budgets dealt round-robin to them)"
+    )
     return _save(fig, path)

@@ -20,6 +20,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from cpp_mujoco.evaluate import split_conditions
 from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.review.tables import format_table
@@ -153,6 +156,53 @@ def wind_row(result) -> dict:
     return _row(result, cells, _numbers(result), result.conditions)
 
 
+def weather(result) -> str:
+    """The weather a MuJoCo result was flown in, as one cell (``calm``,
+    ``9 m/s N/E/S/W + moderate turbulence``)."""
+    from cpp_mujoco.wind_protocol import COMPASS_NAMES
+
+    parts = result.conditions.get("parts") or [{}]
+    config = result.conditions.get("physics_config") or {}
+    configs = [{**config, **(p.get("physics_config") or {})} for p in parts]
+    speed = wind_speed(result)
+    if not speed:
+        text = "calm"
+    else:
+        dirs = [float(c.get("wind_direction", 0.0)) for c in configs]
+        text = f"{speed:g} m/s " + "/".join(COMPASS_NAMES.get(d, f"{d:g}°") for d in dirs)
+    levels = {c.get("turbulence", "none") for c in configs} - {"none"}
+    gusts = {float(c.get("gust_std", 0.0)) for c in configs} - {0.0}
+    return (
+        text
+        + "".join(f" + {t} turbulence" for t in sorted(levels))
+        + "".join(f" + gusts σ {g:g}" for g in sorted(gusts))
+    )
+
+
+RATED_COLUMNS = [
+    "map", "policy", "weather", "episodes", "landing", "coverage", "crashes", "nfz viol.",
+    "max off-track m",
+]  # fmt: skip
+
+
+def rated_row(result) -> dict:
+    """One policy over the protocol in one weather: the no-fly record first."""
+    s = result.summary()
+    cells = {
+        "weather": weather(result),
+        "episodes": int(result.landed.size),
+        "landing": _pct(s["landing_ratio"]),
+        "coverage": _pct(s["coverage_ratio"]),
+        "crashes": s["crashes"],
+        "nfz viol.": s["nfz_violations"],
+        "max off-track m": f"{s['max_track_error_m']:.2f}",
+    }
+    reasons, counts = np.unique(result.physics["crash_reason"], return_counts=True)
+    crashes = {str(r): int(n) for r, n in zip(reasons, counts, strict=True) if r}
+    values = {**_numbers(result), "crash_reasons": crashes}
+    return _row(result, cells, values, result.conditions)
+
+
 def paper_row(agent, greedy, beam) -> dict:
     """The paper's comparison on a bundled map: the agent's landing ratio against the paper's,
     its coverage against the safe greedy and beam-search planners; the bar is both met."""
@@ -178,30 +228,6 @@ def paper_row(agent, greedy, beam) -> dict:
 # ------------------------------------------------------------------------------------- tables
 def _plain(value: Any) -> Any:
     return json.loads(json.dumps(value, default=json_default))
-
-
-def split_conditions(conditions: list[dict]) -> tuple[dict, list[dict]]:
-    """(what every row's conditions share, what each row has of its own), nested dicts split
-    key by key — so a sweep's rows carry their wind and nothing else."""
-    shared: dict = {}
-    own: list[dict] = [{} for _ in conditions]
-    missing = object()
-    for key in dict.fromkeys(k for c in conditions for k in c):
-        values = [c.get(key, missing) for c in conditions]
-        if all(v == values[0] for v in values):
-            shared[key] = values[0]
-        elif all(isinstance(v, dict) for v in values):
-            inner_shared, inner_own = split_conditions(values)
-            if inner_shared:
-                shared[key] = inner_shared
-            for row, part in zip(own, inner_own, strict=True):
-                if part:
-                    row[key] = part
-        else:
-            for row, v in zip(own, values, strict=True):
-                if v is not missing:
-                    row[key] = v
-    return shared, own
 
 
 @dataclass

@@ -1,0 +1,62 @@
+"""Flight at the rated wind: no-fly violations, landing and coverage over the whole protocol.
+
+Every bundled agent (on its map) and the safe greedy planner fly every landing cell × budget of
+A, B and C in MuJoCo at ``RATED_WIND`` (9 m/s steady + moderate Dryden turbulence), the wind
+from N, E, S and W with the budgets dealt round-robin to the four (``cpp_mujoco.wind_protocol``):
+    python scripts/rated_wind.py                    # the full protocol
+    python scripts/rated_wind.py --budget-step 5    # quicker
+Writes out/rated_wind/{rated_wind.md, rated_wind.json}; exits 1 if any no-fly violation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from cpp_mujoco.evaluate import protocol_budgets
+from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.review.results import (
+    RATED_COLUMNS,
+    Table,
+    demo_policies,
+    rated_row,
+    write_rendered,
+    write_tables,
+)
+from cpp_mujoco.wind_protocol import RATED_WIND, evaluate_in_winds
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--maps", nargs="+", default=bundled_maps(), help="names or PNG paths")
+    parser.add_argument("--budget-step", type=int, default=1, help="protocol budgets step")
+    parser.add_argument("--policies", nargs="+", default=None, help="e.g. safe-greedy")
+    parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
+    parser.add_argument("--out", default="out/rated_wind", help="output folder")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    table = Table("the rated wind: 9 m/s from N/E/S/W + moderate turbulence", RATED_COLUMNS)
+    budgets = protocol_budgets(step=args.budget_step)
+    for grid_map in map(load_map, args.maps):
+        for name, policy in demo_policies(grid_map):
+            if args.policies and name not in args.policies:
+                continue
+            result = evaluate_in_winds(
+                policy, grid_map, RATED_WIND["wind_speed"], turbulence=RATED_WIND["turbulence"],
+                budgets=budgets, policy_name=name, workers=args.workers,
+                progress=sys.stderr.isatty(),
+            )  # fmt: skip
+            table.rows.append(rated_row(result))
+            print(table.render().splitlines()[-1], flush=True)
+            write_tables(out / "rated_wind.json", {"rated_wind": table})  # after every row
+            write_rendered(out / "rated_wind.md", {"rated_wind": table}, "markdown")
+    print(table.render())
+    violations = sum(row["values"]["nfz_violations"] for row in table.rows)
+    print(f"\nwritten: {out}/rated_wind.md, rated_wind.json; no-fly violations: {violations}")
+    return 1 if violations else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,79 @@
+"""The protocol in wind from four directions, joined results, and flight at the rated wind."""
+
+import numpy as np
+import pytest
+
+from cpp_mujoco.agent import load_agent
+from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.planners import RandomPlanner, SafeGreedyPlanner
+from cpp_mujoco.review.results import rated_row, weather
+from cpp_mujoco.wind_protocol import COMPASS, RATED_WIND, concatenate, evaluate_in_winds
+
+SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
+
+
+def test_joined_parts_equal_the_whole_protocol_episode_for_episode():
+    whole = evaluate(SafeGreedyPlanner(), SMALL, budgets=[5, 6, 7, 9])
+    parts = [evaluate(SafeGreedyPlanner(), SMALL, budgets=b) for b in ([5, 7], [6, 9])]
+    joined = concatenate(parts)
+    order = np.lexsort((joined.budgets, joined.starts[:, 1], joined.starts[:, 0]))
+    ref = np.lexsort((whole.budgets, whole.starts[:, 1], whole.starts[:, 0]))
+    for name in ("starts", "budgets", "landed", "coverage", "steps", "returns"):
+        np.testing.assert_array_equal(getattr(joined, name)[order], getattr(whole, name)[ref])
+    assert joined.landing_ratio == whole.landing_ratio
+    assert joined.coverage_ratio == pytest.approx(whole.coverage_ratio)
+    assert joined.upper_bound == whole.upper_bound
+    # what the parts share is stated once; what differs (their budgets) per part, in order
+    assert joined.conditions["episodes"] == whole.landed.size
+    assert joined.conditions["backend"] == "grid"
+    assert [p["budgets"] for p in joined.conditions["parts"]] == [
+        {"min": 5, "max": 7, "step": 2}, {"min": 6, "max": 9, "step": 3},
+    ]  # fmt: skip
+
+
+def test_joining_unlike_results_is_an_error():
+    greedy = evaluate(SafeGreedyPlanner(), SMALL, budgets=[5])
+    with pytest.raises(ValueError, match="cannot join"):
+        concatenate([greedy, evaluate(RandomPlanner(seed=0), SMALL, budgets=[6])])
+    with pytest.raises(ValueError, match="flown twice"):
+        concatenate([greedy, evaluate(SafeGreedyPlanner(), SMALL, budgets=[5, 6])])
+    with pytest.raises(ValueError, match="nothing"):
+        concatenate([])
+
+
+def test_four_winds_fly_every_episode_once_each_direction_over_the_budget_range():
+    result = evaluate_in_winds(
+        SafeGreedyPlanner(), SMALL, 3.0, turbulence="light", budgets=[4, 5, 6, 7, 8], workers=1
+    )
+    starts = {(tuple(s), int(b)) for s, b in zip(result.starts, result.budgets, strict=True)}
+    assert len(starts) == result.landed.size == 4 * 5  # 4 landing cells × 5 budgets, once
+    parts = result.conditions["parts"]
+    assert [p["physics_config"]["wind_direction"] for p in parts] == list(COMPASS)
+    assert result.conditions["physics_config"]["wind_speed"] == 3.0  # shared
+    assert result.conditions["physics_config"]["turbulence"] == "light"
+    assert weather(result) == "3 m/s N/E/S/W + light turbulence"
+    row = rated_row(result)
+    assert row["weather"] == weather(result) and row["episodes"] == 20
+    assert row["values"]["max_track_error_m"] == result.physics["max_track_error_m"].max()
+
+
+def test_calm_air_is_one_run_without_directions():
+    result = evaluate_in_winds(SafeGreedyPlanner(), SMALL, 0.0, budgets=[5, 6], workers=1)
+    assert weather(result) == "calm" and len(result.conditions["parts"]) == 1
+
+
+def test_the_rated_wind_keeps_the_bundled_agent_out_of_no_fly_airspace():
+    """A protocol subset of the full run (``scripts/rated_wind.py``): map B's agent, every
+    landing cell, budgets across the range, 9 m/s from each direction + moderate turbulence."""
+    result = evaluate_in_winds(
+        load_agent("B"), "B", RATED_WIND["wind_speed"], turbulence=RATED_WIND["turbulence"],
+        budgets=[25, 41, 57, 75], policy_name="ddqn[B]", workers=2,
+    )  # fmt: skip
+    assert result.landed.size == 8 * 4
+    assert result.physics["nfz_violations"].sum() == 0
+    # the margin: a no-fly border lies half a cell (2 m) from every reference point
+    assert result.physics["max_track_error_m"].max() < 1.5
+    # a crash in wind is an emergency landing where the UAV was, never a fall
+    reasons = set(result.physics["crash_reason"].tolist()) - {""}
+    assert all("emergency landing" in r or r == "budget exhausted before landing" for r in reasons)
