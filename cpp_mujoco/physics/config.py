@@ -208,7 +208,7 @@ class PhysicsConfig:
     # episode's pack holds its budget of drawable energy between full charge and the reserve.
     battery_cells: int = 3  # in series
     battery_cell_resistance: float = 0.005  # Ω per cell, internal (DC) resistance
-    battery_cutoff_v: float = 3.3  # V per cell under load; below it the motors are cut
+    battery_cutoff_v: float = 3.3  # V per cell under load; below it the failsafe lands
     battery_reserve: float = 0.1  # state of charge left when the budget is spent
     # --- the waypoint controller's bandwidths (a dict of some fields is accepted too)
     controller: ControllerGains = field(default_factory=ControllerGains)
