@@ -197,3 +197,20 @@ def test_shown_budget_keeps_pace_with_the_grid_over_a_long_mission():
         assert info["budget"] == 31 - (k + 1), f"after {k + 1} moves"
     *_, terminated, _, info = env.step(4)
     assert terminated and info["landed"] and not info["crashed"]
+
+
+def test_a_landing_begun_with_budget_left_finishes_on_the_reserve():
+    """On the grid a landing with one unit left always succeeds; in physics a landing that
+    outlasts the budget's energy (gusts, a strong wind) touches down on the reserve, where the
+    failsafe would have landed it anyway — landed, not a crash."""
+    flight = make_flight()
+    flight.reset(2, 2, capacity=5000.0)
+    flight.energy_used = 4900.0  # 100 J left of the budget: a fifth of what a landing draws
+    result = flight.land(2 * 5 + 2)
+    assert result.landed and result.failure is None
+    assert flight.energy_used > flight.capacity + 250.0
+    # a move with the same energy left is cut short by the failsafe instead
+    flight.reset(2, 2, capacity=5000.0)
+    flight.energy_used = 4900.0
+    result = flight.move(1 * 5 + 2)
+    assert not result.landed and result.failure == EMERGENCY_LANDING

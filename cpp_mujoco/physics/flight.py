@@ -236,6 +236,9 @@ class Flight:
         step, t = mujoco.mj_step, 0.0
         worst2 = self.max_track_error**2
         emergency: str | None = None  # why the battery failsafe is landing the UAV
+        # a landing begun with budget left finishes on the reserve: the failsafe would land
+        # right there anyway, and on the grid a landing with one unit left always succeeds
+        landing = land
         while True:
             qp = qpos.tolist()
             qv = qvel.tolist()
@@ -311,7 +314,7 @@ class Flight:
                     f, t = zero, 0.0  # the fall gets its own time limit
                 else:
                     self.energy_used += e
-                    if emergency is None and (
+                    if not landing and emergency is None and (
                         battery.below_cutoff or self.energy_used >= self.capacity
                     ):  # the battery failsafe: land where it is, on the reserve
                         emergency = CUTOFF if battery.below_cutoff else EMERGENCY_LANDING
