@@ -314,8 +314,10 @@ class Flight:
                     f, t = zero, 0.0  # the fall gets its own time limit
                 else:
                     self.energy_used += e
-                    if not landing and emergency is None and (
-                        battery.below_cutoff or self.energy_used >= self.capacity
+                    if (
+                        not landing
+                        and emergency is None
+                        and (battery.below_cutoff or self.energy_used >= self.capacity)
                     ):  # the battery failsafe: land where it is, on the reserve
                         emergency = CUTOFF if battery.below_cutoff else EMERGENCY_LANDING
                         land, t, limit = True, 0.0, self.config.land_time_limit
