@@ -13,8 +13,7 @@ SMALL = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="small")
 INFO_KEYS = {
     "position", "budget", "landed", "crashed", "rejected", "coverage_ratio",
     "energy_used_j", "flight_time_s", "nfz_violations", "max_track_error_m", "tracking_error_m",
-    "crash_reason",
-    "state_of_charge", "battery_voltage_v",
+    "crash_reason", "guard_active", "guard_takeovers", "state_of_charge", "battery_voltage_v",
 }  # fmt: skip
 
 

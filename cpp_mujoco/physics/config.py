@@ -23,7 +23,7 @@ from cpp_mujoco.physics.turbulence import check_level
 # fields that do not change how a calm-air move flies (so they do not change the energy unit)
 _NOT_CALIBRATED = {
     "wind_speed", "wind_direction", "gust_std", "gust_tau", "turbulence", "unit_margin",
-    "battery_cutoff_v",
+    "battery_cutoff_v", "return_guard",
 }  # fmt: skip
 
 _INF = math.inf
@@ -210,6 +210,10 @@ class PhysicsConfig:
     battery_cell_resistance: float = 0.005  # Ω per cell, internal (DC) resistance
     battery_cutoff_v: float = 3.3  # V per cell under load; below it the failsafe lands
     battery_reserve: float = 0.1  # state of charge left when the budget is spent
+    # --- the return guard (cpp_mujoco/physics/return_guard.py): when the energy left comes
+    # down to the estimated way home, it takes over and flies to the nearest landing cell.
+    # Off by default, so the paper's protocol is unchanged
+    return_guard: bool = False
     # --- the waypoint controller's bandwidths (a dict of some fields is accepted too)
     controller: ControllerGains = field(default_factory=ControllerGains)
 
@@ -218,6 +222,9 @@ class PhysicsConfig:
         ``gust_tau`` (division), a timestep the controller rate cannot be made of."""
         _check_numbers(self, _RANGES)
         check_level(self.turbulence, self.altitude)
+        if not isinstance(self.return_guard, (bool, np.bool_)):
+            raise ValueError(f"return_guard must be True or False, got {self.return_guard!r}")
+        object.__setattr__(self, "return_guard", bool(self.return_guard))
         if self.power_model not in POWER_MODELS:
             raise ValueError(
                 f"power_model must be one of {', '.join(POWER_MODELS)}, got {self.power_model!r}"

@@ -27,6 +27,7 @@ from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import ActionResult, Flight
+from cpp_mujoco.physics.return_guard import ReturnGuard
 
 BUDGET_EXHAUSTED = "budget exhausted before landing"
 
@@ -80,6 +81,10 @@ class MuJoCoEnv(SingleGridEnv):
         self.flight = Flight(self.model, self.grid_map, self.config, coverage=self.mdp.coverage)
         self.data = self.flight.data
         self.unit_energy = unit_energy(self.config)
+        drag = 0.5 * self.config.air_density * self.flight.params.drag_area
+        self.guard = (
+            ReturnGuard(self.grid_map, self.unit_energy, drag) if self.config.return_guard else None
+        )
         limit = (self.model.vis.global_.offwidth, self.model.vis.global_.offheight)
         size = tuple(render_size) if isinstance(render_size, (tuple, list)) else ()
         if len(size) != 2 or not all(
@@ -98,6 +103,8 @@ class MuJoCoEnv(SingleGridEnv):
         row, col = divmod(int(self.mdp.position[0]), self.mdp.width)
         capacity = float(self.mdp.budget[0]) * self.unit_energy
         self.flight.reset(row, col, capacity, rng=self.np_random)
+        if self.guard is not None:
+            self.guard.reset()
         self._last = ActionResult()
         self._crash_reason = None
 
@@ -105,6 +112,8 @@ class MuJoCoEnv(SingleGridEnv):
         """Safety decision, then the flight; its outcome goes through the grid's rules."""
         m = self.mdp
         cell = int(m.position[0])
+        if self.guard is not None:  # it may fly home instead of the policy's action
+            action = self.guard.filter(cell, int(action), self._remaining())
         next_cell, rejected, lands = m.safety.decide(cell, action)
         if lands:
             result = self.flight.land(cell)
@@ -113,8 +122,10 @@ class MuJoCoEnv(SingleGridEnv):
         else:
             result = self.flight.move(int(next_cell))
         self._last = result
-        remaining = max(self.flight.capacity - self.flight.energy_used, 0.0)
-        budget = math.floor(remaining / self.unit_energy + 1e-9)
+        if self.guard is not None:
+            force = getattr(self.flight.controller, "disturbance", None)  # a part may lack it
+            self.guard.observe(int(action), bool(rejected), result.energy, force)
+        budget = math.floor(self._remaining() / self.unit_energy + 1e-9)
         out = m.apply(
             Outcome(
                 next_cell=np.array([next_cell], dtype=np.int64),
@@ -128,6 +139,10 @@ class MuJoCoEnv(SingleGridEnv):
         crashed = bool(out.crashed[0])
         self._crash_reason = result.failure or (BUDGET_EXHAUSTED if crashed else None)
         return out
+
+    def _remaining(self) -> float:
+        """J of the budget left in the pack."""
+        return max(self.flight.capacity - self.flight.energy_used, 0.0)
 
     def render(self) -> np.ndarray | None:
         """The chase camera's view of the current state, (H, W, 3) uint8; None without a mode."""
@@ -160,4 +175,7 @@ class MuJoCoEnv(SingleGridEnv):
             "state_of_charge": float(f.battery.soc),
             "battery_voltage_v": float(f.battery.voltage),
             "crash_reason": self._crash_reason,
+            # the return guard chose this step's action; how often it did this episode
+            "guard_active": bool(self.guard is not None and self.guard.active),
+            "guard_takeovers": int(self.guard.takeovers if self.guard is not None else 0),
         }

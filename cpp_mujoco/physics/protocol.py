@@ -197,6 +197,7 @@ def records_to_arrays(records: list[EpisodeRecord]) -> dict[str, Any]:
             "flight_time_s": final("flight_time_s"),
             "nfz_violations": final("nfz_violations", np.int64),
             "max_track_error_m": final("max_track_error_m"),
+            "guard_takeovers": final("guard_takeovers", np.int64),
             "crashed": final("crashed", bool),
             "crash_reason": np.array([r.info["crash_reason"] or "" for r in records]),
         },
