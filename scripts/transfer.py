@@ -7,9 +7,9 @@ Writes out/transfer/{transfer.md, transfer.json, wind_sweep.png, coverage_*.png}
 
 The sweep flies the bundled agent and the safe greedy planner at 0, 3, 6, 9 and 12 m/s, the wind
 from N, E, S and W with the budgets dealt round-robin to them, in moderate Dryden turbulence
-(``--turbulence``). The energy table flies single actions on an open map
-(:mod:`cpp_mujoco.physics.action_energy`): steady wind, and the mean over ``--repeats`` gust
-histories in the sweep's turbulence.
+(``--turbulence``); ``--guard`` adds each policy flown with the return guard. The energy table
+flies single actions on an open map (:mod:`cpp_mujoco.physics.action_energy`): steady wind, and
+the mean over ``--repeats`` gust histories in the sweep's turbulence.
 """
 
 from __future__ import annotations
@@ -77,6 +77,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--sweep-step", type=int, default=10, help="wind sweep budgets step")
     parser.add_argument("--turbulence", default="moderate", choices=LEVELS, help="in the sweep")
     parser.add_argument("--repeats", type=int, default=5, help="gust histories per energy row")
+    parser.add_argument(
+        "--guard", action="store_true", help="sweep each policy with return_guard=True too"
+    )
     parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
     parser.add_argument("--out", default="out/transfer", help="output folder")
     args = parser.parse_args(argv)
@@ -98,12 +101,16 @@ def main(argv: list[str] | None = None) -> None:
         transfer.rows.append(transfer_row(grid, physics))
         coverage_figure([grid, physics], out / f"coverage_{file_part(grid_map.label)}.png")
         print(transfer.render().splitlines()[-1], flush=True)
-        for name, policy in policies:
+        variants = [(n, p, False) for n, p in policies]
+        if args.guard:
+            variants += [(f"{n} + guard", p, True) for n, p in policies]
+        for name, policy, guard in variants:
             for speed in WINDS:
                 result = evaluate_in_winds(
                     policy, grid_map, speed, turbulence=args.turbulence if speed else "none",
                     budgets=protocol_budgets(step=args.sweep_step), policy_name=name,
                     workers=args.workers, progress=progress,
+                    env_kwargs={"return_guard": True} if guard else None,
                 )  # fmt: skip
                 sweep.append(result)
                 wind.rows.append(rated_row(result))

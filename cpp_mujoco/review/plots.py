@@ -149,7 +149,7 @@ def wind_sweep_figure(results: Sequence[EvaluationResult], path: str | os.PathLi
     for key in dict.fromkeys((r.map_name, r.policy_name) for r in results):
         entries = sorted((r for r in results if (r.map_name, r.policy_name) == key), key=wind_speed)
         winds = [wind_speed(r) for r in entries]
-        style = "o-" if key[1].startswith("ddqn") else "s--"
+        style = ("o" if key[1].startswith("ddqn") else "s") + (":" if "guard" in key[1] else "-")
         label = f"map {key[0]}, {key[1]}"
         axes[0].plot(winds, [r.landing_ratio for r in entries], style, label=label)
         axes[1].plot(winds, [r.coverage_ratio for r in entries], style, label=label)
