@@ -107,7 +107,7 @@ def test_in_calm_air_the_guard_costs_the_bundled_agent_almost_nothing():
             agent,
             "B",
             backend="mujoco",
-            budgets=[30, 60],
+            budgets=[30, 45],
             workers=2,
             env_kwargs={"return_guard": guard},
         )  # fmt: skip
