@@ -39,7 +39,12 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     table = Table("the rated wind: 9 m/s from N/E/S/W + moderate turbulence", RATED_COLUMNS)
     budgets = protocol_budgets(step=args.budget_step)
-    for grid_map in map(load_map, args.maps):
+    grid_maps = [load_map(m) for m in args.maps]  # a bad map fails before any flight
+    known = {name for g in grid_maps for name, _ in demo_policies(g)}
+    unknown = sorted(set(args.policies or ()) - known)
+    if unknown:
+        parser.error(f"unknown policies {unknown}; on these maps: {sorted(known)}")
+    for grid_map in grid_maps:
         for name, policy in demo_policies(grid_map):
             if args.policies and name not in args.policies:
                 continue
