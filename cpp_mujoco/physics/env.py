@@ -81,7 +81,7 @@ class MuJoCoEnv(SingleGridEnv):
         self.flight = Flight(self.model, self.grid_map, self.config, coverage=self.mdp.coverage)
         self.data = self.flight.data
         self.unit_energy = unit_energy(self.config)
-        drag = 0.5 * self.config.air_density * self.flight.params.drag_area
+        drag = self.flight.drag.half_rho_cda  # the guard reads the wind off the same drag law
         self.guard = (
             ReturnGuard(self.grid_map, self.unit_energy, drag) if self.config.return_guard else None
         )
