@@ -119,11 +119,13 @@ def _check(path: Path, obj: dict) -> None:
     kw = obj["network_kwargs"]
     if (
         not isinstance(kw, dict)
-        or set(kw) != {"height", "width"}
-        or not all(type(v) is int and 1 <= v <= MAX_SIDE for v in kw.values())
+        or not {"height", "width"} <= set(kw) <= {"height", "width", "wind_inputs"}
+        or not all(type(kw[k]) is int and 1 <= kw[k] <= MAX_SIDE for k in ("height", "width"))
+        or type(kw.get("wind_inputs", False)) is not bool
     ):
         raise CheckpointError(
-            f"{path}: network_kwargs {kw!r} are not a map size (height and width in 1..{MAX_SIDE})"
+            f"{path}: network_kwargs {kw!r} are not a map size (height and width in "
+            f"1..{MAX_SIDE}) and an optional wind_inputs flag"
         )
     scale = obj["budget_scale"]
     if type(scale) not in (int, float) or not math.isfinite(scale) or scale <= 0:
@@ -186,7 +188,11 @@ def agent_payload(
         "network": {
             k: v.detach().to("cpu", torch.float32).clone() for k, v in network.state_dict().items()
         },
-        "network_kwargs": {"height": network.height, "width": network.width},
+        "network_kwargs": {
+            "height": network.height,
+            "width": network.width,
+            **({"wind_inputs": True} if network.wind_inputs else {}),
+        },
         "budget_scale": float(budget_scale),
         "map": map_name,
         "map_digest": map_digest,

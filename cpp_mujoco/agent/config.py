@@ -18,6 +18,14 @@ class TrainConfig:
     seed: int = 0
     min_budget: int = 25  # paper: budgets uniform over 25..75 each episode
     max_budget: int = 75
+    # wind-robust agents: > 0 trains in the grid's wind option (GridWind: a per-episode wind
+    # up to this speed, m/s, sets each action's cost; the network also reads the wind).
+    # 0 = the paper's MDP, one unit per action
+    wind_max_speed: float = 0.0
+    wind_calm_fraction: float = 0.2  # share of training episodes in calm air (wind option)
+    # start from this agent's weights (bundled name or file; "" = random init). A wind network
+    # started from a calm one gets zero weights on its wind inputs: it first acts as that agent
+    init_from: str = ""
     # --- DDQN (paper Table I) ----------------------------------------------------------------
     gamma: float = 0.95  # discount factor
     tau: float = 0.01  # soft target update θ̄ ← (1−τ)θ̄ + τθ after each step (paper: 0.005)
@@ -91,12 +99,21 @@ class TrainConfig:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in (
             "max_minutes", "checkpoint_minutes", "budget_scale", "threads", "learning_starts",
-            "guide_fraction", "updates_per_step",
+            "guide_fraction", "updates_per_step", "wind_max_speed",
         ):  # fmt: skip
             if not 0 <= getattr(self, name) < float("inf"):  # NaN fails too
                 raise ValueError(f"{name} must be a finite number >= 0, got {getattr(self, name)}")
         if not 0 < self.learning_rate < float("inf"):
             raise ValueError(f"learning_rate must be > 0, got {self.learning_rate}")
+
+    @property
+    def wind(self):
+        """The grid's wind option this config trains in (None: the paper's unit costs)."""
+        from cpp_mujoco.grid.wind import GridWind
+
+        if not self.wind_max_speed:
+            return None
+        return GridWind(max_speed=self.wind_max_speed, calm_fraction=self.wind_calm_fraction)
 
     @property
     def input_budget_scale(self) -> float:

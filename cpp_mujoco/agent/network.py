@@ -5,6 +5,9 @@ movement budget as one scalar. Two 5×5 convolutions with 16 filters keep the sp
 channel is zero-padded except the FIRST layer's no-fly channel, which is padded with ones (outside
 the grid is no-fly). Flatten, concatenate the budget, three fully-connected layers of 256 with ReLU,
 a linear output of 5 Q-values. For a 16×16 map: 1,190,389 trainable parameters.
+
+A wind-robust agent (``wind_inputs=True``) also reads the observed steady wind (east, north,
+divided by :data:`WIND_SCALE`) beside the budget: two more inputs to the first dense layer.
 """
 
 from __future__ import annotations
@@ -18,11 +21,12 @@ from cpp_mujoco.grid.actions import NUM_ACTIONS
 
 IN_CHANNELS = 5  # landing, target, nfz, coverage, position
 NFZ_CHANNEL = 2
+WIND_SCALE = 10.0  # m/s: the wind inputs are of order one at the rated wind
 
 
 class QNetwork(nn.Module):
-    """Q(s, ·) for an H×W map. ``forward(grid, budget)``: grid (B,5,H,W) float, budget (B,1) float
-    (already scaled, see :func:`observation_to_tensors`)."""
+    """Q(s, ·) for an H×W map. ``forward(grid, scalars)``: grid (B,5,H,W) float, scalars (B,1)
+    the scaled budget, or (B,3) budget and wind with ``wind_inputs`` (:func:`scalar_inputs`)."""
 
     def __init__(
         self,
@@ -32,16 +36,19 @@ class QNetwork(nn.Module):
         kernel_size: int = 5,
         hidden: int = 256,
         num_hidden: int = 3,
+        wind_inputs: bool = False,
     ):
         super().__init__()
         if kernel_size % 2 != 1:
             raise ValueError(f"kernel_size must be odd to keep the shape, got {kernel_size}")
         self.height, self.width = height, width
+        self.wind_inputs = bool(wind_inputs)
+        self.num_scalars = 3 if self.wind_inputs else 1
         self.pad = kernel_size // 2
         self.conv1 = nn.Conv2d(IN_CHANNELS, conv_filters, kernel_size, padding=0)
         self.conv2 = nn.Conv2d(conv_filters, conv_filters, kernel_size, padding=self.pad)
         layers: list[nn.Module] = []
-        width_in = conv_filters * height * width + 1  # + budget scalar
+        width_in = conv_filters * height * width + self.num_scalars  # + budget (and wind)
         for _ in range(num_hidden):
             layers += [nn.Linear(width_in, hidden), nn.ReLU()]
             width_in = hidden
@@ -55,30 +62,57 @@ class QNetwork(nn.Module):
         nfz = F.pad(grid[:, NFZ_CHANNEL : NFZ_CHANNEL + 1], (p, p, p, p), value=1.0)
         return torch.cat([padded[:, :NFZ_CHANNEL], nfz, padded[:, NFZ_CHANNEL + 1 :]], dim=1)
 
-    def forward(self, grid: torch.Tensor, budget: torch.Tensor) -> torch.Tensor:
+    def forward(self, grid: torch.Tensor, scalars: torch.Tensor) -> torch.Tensor:
         x = F.relu(self.conv1(self.pad_input(grid)))
         x = F.relu(self.conv2(x))
-        x = torch.cat([x.flatten(1), budget.reshape(-1, 1)], dim=1)
+        x = torch.cat([x.flatten(1), scalars.reshape(-1, self.num_scalars)], dim=1)
         return self.head(x)
+
+    def load_narrower(self, source: QNetwork) -> None:
+        """Start from ``source``'s weights (same map size; it may lack wind inputs): the wind
+        inputs' weights start at zero, so this network first acts exactly as ``source``."""
+        if (source.height, source.width) != (self.height, self.width):
+            raise ValueError(
+                f"cannot start a {self.height}x{self.width} network from a "
+                f"{source.height}x{source.width} one"
+            )
+        state = source.state_dict()
+        first = self.head[0].weight
+        if state["head.0.weight"].shape[1] != first.shape[1]:
+            widened = torch.zeros_like(first)
+            widened[:, : state["head.0.weight"].shape[1]] = state["head.0.weight"]
+            state["head.0.weight"] = widened
+        self.load_state_dict(state)
 
 
 def count_parameters(module: nn.Module) -> int:
     return sum(p.numel() for p in module.parameters() if p.requires_grad)
 
 
-def observation_to_tensors(
-    obs: dict[str, np.ndarray], budget_scale: float, device: torch.device | str = "cpu"
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """A batched observation dict (leading dim N) → (grid (N,5,H,W), budget (N,1)) float tensors.
+def scalar_inputs(budget, wind, budget_scale: float, wind_inputs: bool) -> np.ndarray:
+    """The network's scalar inputs (N, 1 or 3) float32: budget / ``budget_scale`` (a fixed
+    preprocessing stored with the weights), then, for a wind network, wind / WIND_SCALE."""
+    budget = np.asarray(budget, dtype=np.float32).reshape(-1, 1) / np.float32(budget_scale)
+    if not wind_inputs:
+        return budget
+    wind = np.asarray(wind, dtype=np.float32).reshape(-1, 2) / np.float32(WIND_SCALE)
+    return np.concatenate([budget, wind], axis=1)
 
-    The budget is divided by ``budget_scale`` (the training config's max budget), a fixed
-    preprocessing stored with the weights.
-    """
+
+def observation_to_tensors(
+    obs: dict[str, np.ndarray],
+    budget_scale: float,
+    device: torch.device | str = "cpu",
+    wind_inputs: bool = False,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """A batched observation dict (leading dim N) → (grid (N,5,H,W), scalars) float tensors
+    (:func:`scalar_inputs`); an observation without ``wind`` counts as calm air."""
     coverage = np.asarray(obs["coverage"])
     n = coverage.shape[0]
     maps = np.broadcast_to(np.asarray(obs["map"]), (n, 3, *coverage.shape[1:]))
     grid = np.concatenate(
         [maps, coverage[:, None], np.asarray(obs["position"])[:, None]], axis=1, dtype=np.float32
     )
-    budget = np.asarray(obs["budget"], dtype=np.float32).reshape(n, 1) / budget_scale
-    return torch.from_numpy(grid).to(device), torch.from_numpy(budget).to(device)
+    wind = obs.get("wind", np.zeros((n, 2), dtype=np.float32)) if wind_inputs else None
+    scalars = scalar_inputs(np.reshape(obs["budget"], (n, 1)), wind, budget_scale, wind_inputs)
+    return torch.from_numpy(grid).to(device), torch.from_numpy(scalars).to(device)

@@ -51,8 +51,10 @@ class GreedyAgent:
         parts = []
         for lo in range(0, max(n, 1), step):
             part = {k: _rows(k, v, lo, lo + step) for k, v in obs.items()}
-            grid, budget = observation_to_tensors(part, self.budget_scale, self.device)
-            parts.append(self.network(grid, budget).cpu().numpy())
+            grid, scalars = observation_to_tensors(
+                part, self.budget_scale, self.device, self.network.wind_inputs
+            )
+            parts.append(self.network(grid, scalars).cpu().numpy())
         return np.concatenate(parts)
 
     def reset(self, num_episodes: int, seed: int | None = None) -> None:

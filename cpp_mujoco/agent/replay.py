@@ -30,6 +30,7 @@ class ReplayBuffer:
         self.coverage = np.zeros((r, n, h * w), dtype=bool)
         self.position = np.zeros((r, n), dtype=np.int64)
         self.budget = np.zeros((r, n), dtype=np.float32)
+        self.wind = np.zeros((r, n, 2), dtype=np.float32)  # the observed steady wind
         self.action = np.zeros((r, n), dtype=np.int64)
         self.reward = np.zeros((r, n), dtype=np.float32)
         self.terminated = np.zeros((r, n), dtype=bool)
@@ -45,6 +46,7 @@ class ReplayBuffer:
         self.coverage[t] = np.asarray(obs["coverage"]).reshape(n, -1).astype(bool)
         self.position[t] = np.asarray(obs["position"]).reshape(n, -1).argmax(1)
         self.budget[t] = np.asarray(obs["budget"]).reshape(n)
+        self.wind[t] = np.asarray(obs["wind"]).reshape(n, 2) if "wind" in obs else 0.0
         self.action[t] = action
         self.reward[t] = reward
         self.terminated[t] = terminated
@@ -89,7 +91,8 @@ class ReplayBuffer:
             "discount": np.where(alive, self.gamma**steps, 0.0).astype(np.float32),
         }
 
-    def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(grid (b,5,H,W), budget (b,1), wind (b,2)) of rows ``t`` of envs ``e``."""
         b = t.size
         hw = self.height * self.width
         grid = np.empty((b, 5, self.height, self.width), dtype=np.float32)
@@ -98,7 +101,7 @@ class ReplayBuffer:
         pos = np.zeros((b, hw), dtype=np.float32)
         pos[np.arange(b), self.position[t, e]] = 1.0
         grid[:, 4] = pos.reshape(b, self.height, self.width)
-        return grid, self.budget[t, e][:, None]
+        return grid, self.budget[t, e][:, None], self.wind[t, e]
 
     # ------------------------------------------------------------------ checkpointing
     def state_dict(self) -> dict:
@@ -106,6 +109,7 @@ class ReplayBuffer:
             "coverage": torch.from_numpy(np.packbits(self.coverage, axis=-1)),
             "position": torch.from_numpy(self.position),
             "budget": torch.from_numpy(self.budget),
+            "wind": torch.from_numpy(self.wind),
             "action": torch.from_numpy(self.action),
             "reward": torch.from_numpy(self.reward),
             "terminated": torch.from_numpy(self.terminated),
@@ -121,4 +125,6 @@ class ReplayBuffer:
         self.coverage[:] = cov
         for name in ("position", "budget", "action", "reward", "terminated"):
             getattr(self, name)[:] = state[name].numpy()
+        # a checkpoint from before the wind option held calm-air observations only
+        self.wind[:] = state["wind"].numpy() if "wind" in state else 0.0
         self.pos, self.full = int(state["pos"]), bool(state["full"])

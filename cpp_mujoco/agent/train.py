@@ -32,7 +32,7 @@ from cpp_mujoco.agent.checkpoint import (
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.ddqn import ddqn_update, softmax_actions
 from cpp_mujoco.agent.demonstrations import record_demonstrations
-from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
+from cpp_mujoco.agent.network import QNetwork, observation_to_tensors, scalar_inputs
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.replay import ReplayBuffer
 from cpp_mujoco.agent.run_folder import StopSignals, TrainingInterrupted, claim_run_folder
@@ -53,7 +53,7 @@ class Trainer:
         cores = os.cpu_count() or 1
         self.tuner = ThreadTuner((1, cores)) if c.threads == 0 and cores > 1 else None
         self.grid_map = load_map(c.map)
-        self.grid_config = GridConfig(min_budget=c.min_budget, max_budget=c.max_budget)
+        self.grid_config = GridConfig(min_budget=c.min_budget, max_budget=c.max_budget, wind=c.wind)
         self.env = gym.make_vec(
             "cpp_mujoco/Grid-v0",
             num_envs=c.num_envs,
@@ -63,8 +63,12 @@ class Trainer:
         )
         torch.manual_seed(c.seed)
         h, w = self.grid_map.shape
-        self.online = QNetwork(h, w).to(self.device)
-        self.target = QNetwork(h, w).to(self.device)
+        self.online = QNetwork(h, w, wind_inputs=c.wind is not None).to(self.device)
+        self.target = QNetwork(h, w, wind_inputs=c.wind is not None).to(self.device)
+        if c.init_from:  # fine-tuning: a resume then overwrites these weights with its own
+            from cpp_mujoco.agent import load_agent
+
+            self.online.load_narrower(load_agent(c.init_from).network)
         self.target.load_state_dict(self.online.state_dict())
         self.optimizer = torch.optim.Adam(
             self.online.parameters(), lr=c.learning_rate, eps=c.adam_eps
@@ -95,9 +99,11 @@ class Trainer:
     # ------------------------------------------------------------------ collection and learning
     def collect(self) -> None:
         c = self.config
-        grid, budget = observation_to_tensors(self.obs, c.input_budget_scale, self.device)
+        grid, scalars = observation_to_tensors(
+            self.obs, c.input_budget_scale, self.device, self.online.wind_inputs
+        )
         with torch.no_grad():
-            q = self.online(grid, budget).cpu()
+            q = self.online(grid, scalars).cpu()
         actions = softmax_actions(q, c.beta, self.torch_gen).numpy()
         guided = self.guided_envs()
         if guided:
@@ -139,15 +145,15 @@ class Trainer:
             s = _concat(s, self.demos.sample(n_demo, self.rng))
             demo[-n_demo:] = True
         d = self.device
-        scale = c.input_budget_scale
-        (g, b), (ng, nb) = s["obs"], s["next_obs"]
-        return {
+        scale, wind = c.input_budget_scale, self.online.wind_inputs
+        (g, b, wd), (ng, nb, nwd) = s["obs"], s["next_obs"]
+        return {  # "budget" holds the network's scalar inputs: the budget, and a wind net's wind
             "grid": torch.from_numpy(g).to(d),
-            "budget": torch.from_numpy(b / scale).to(d),
+            "budget": torch.from_numpy(scalar_inputs(b, wd, scale, wind)).to(d),
             "action": torch.from_numpy(s["action"]).to(d),
             "return": torch.from_numpy(s["return"]).to(d),
             "next_grid": torch.from_numpy(ng).to(d),
-            "next_budget": torch.from_numpy(nb / scale).to(d),
+            "next_budget": torch.from_numpy(scalar_inputs(nb, nwd, scale, wind)).to(d),
             "discount": torch.from_numpy(s["discount"]).to(d),
             "demo": torch.from_numpy(demo).to(d),
         }

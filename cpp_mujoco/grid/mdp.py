@@ -14,6 +14,7 @@ from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.coverage import mark_fov, square_fov_cells
 from cpp_mujoco.grid.safety import SafetyController
 from cpp_mujoco.grid.spaces import MAX_BUDGET
+from cpp_mujoco.grid.wind import EpisodeWinds, GridWind
 from cpp_mujoco.maps import GridMap
 
 
@@ -40,10 +41,17 @@ class GridConfig:
     min_budget: int = 25  # initial movement budget is uniform over min..max (inclusive)
     max_budget: int = 75
     rewards: Rewards = field(default_factory=Rewards)
+    # None: every action costs one unit (the paper). A GridWind: a per-episode wind sets each
+    # action's cost from physics-calibrated energies, and the budget becomes a float
+    wind: GridWind | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.rewards, dict):
             object.__setattr__(self, "rewards", Rewards(**self.rewards))
+        if isinstance(self.wind, dict):
+            object.__setattr__(self, "wind", GridWind(**self.wind))
+        if self.wind is not None and not isinstance(self.wind, GridWind):
+            raise ValueError(f"wind must be None or a GridWind, got {self.wind!r}")
         if self.fov_side < 1:
             raise ValueError(f"fov_side must be >= 1, got {self.fov_side}")
         if not 1 <= self.min_budget <= self.max_budget <= MAX_BUDGET:
@@ -122,8 +130,12 @@ class GridMDP:
         self._rows = np.arange(num_envs)
 
         n, cells = num_envs, self.height * self.width
+        self.wind = self.config.wind
+        self.winds = EpisodeWinds(num_envs, self.wind)  # observed always; costs with the option
+        self.state_keys = self.STATE + (EpisodeWinds.STATE if self.wind is not None else ())
         self.position = np.zeros(n, dtype=np.int64)
-        self.budget = np.zeros(n, dtype=np.int64)
+        # whole units in the paper's MDP; with wind, what is left of a float budget
+        self.budget = np.zeros(n, dtype=np.float64 if self.wind is not None else np.int64)
         self.coverage = np.zeros((n, cells), dtype=bool)
         self.seen_targets = np.zeros(n, dtype=np.int64)
         self.landed = np.zeros(n, dtype=bool)
@@ -134,13 +146,19 @@ class GridMDP:
     # ------------------------------------------------------------------ state transitions
     @property
     def steps(self) -> np.ndarray:
-        """Actions taken so far in each episode (each costs one budget unit)."""
+        """Budget units used so far in each episode (the paper: actions taken)."""
         return self.initial_budget - self.budget
+
+    @property
+    def out_of_budget(self) -> np.ndarray:
+        """Less than one whole unit left: the paper's budget 0, and what the physics env sees
+        (it floors the pack's remaining energy to whole units)."""
+        return self.budget < 1
 
     @property
     def done(self) -> np.ndarray:
         """Landed, out of budget, or crashed (a physical failure can end a flight early)."""
-        return self.landed | (self.budget <= 0) | self.crashed
+        return self.landed | self.out_of_budget | self.crashed
 
     def reset(
         self,
@@ -148,12 +166,15 @@ class GridMDP:
         mask: np.ndarray | None = None,
         start=None,
         budget=None,
+        wind_draws=None,
     ) -> None:
         """Reset the environments selected by ``mask`` (all if None).
 
         ``start``: (row, col) or an array of them, each a landing cell; default uniform over the
         landing cells. ``budget``: positive int(s); default uniform over min..max budget.
-        Random draws happen in this order (start, then budget) so any batch of the same seed
+        With the wind option, ``wind_draws`` (k, 3) uniforms pick each episode's wind
+        (:meth:`GridWind.draw`); default drawn from ``rng``.
+        Random draws happen in this order (start, budget, wind) so any batch of the same seed
         draws the same episodes.
         """
         idx = np.arange(self.num_envs) if mask is None else np.flatnonzero(mask)
@@ -179,6 +200,10 @@ class GridMDP:
         self.crashed[idx] = False
         self.rejected[idx] = False
         self.initial_budget[idx] = budgets
+        if self.wind is not None:
+            if wind_draws is None:
+                wind_draws = rng.random((k, 3))
+            self.winds.draw(idx, wind_draws)
 
     # Draws map uniform [0, 1) doubles to starts and budgets: one ``Generator.random`` call per
     # value is several times cheaper than ``Generator.integers``, which matters where each env
@@ -195,7 +220,10 @@ class GridMDP:
     def restore(self, position: np.ndarray, budget: np.ndarray, coverage: np.ndarray) -> None:
         """Put every environment into a given mid-episode state (flat cells, budgets, (N, H·W)
         coverage) — for planners that simulate ahead from an observation."""
-        self.reset(np.random.default_rng(0), budget=np.asarray(budget, dtype=np.int64))
+        budget = np.asarray(budget)
+        whole = np.maximum(np.floor(budget), 1).astype(np.int64)
+        self.reset(np.random.default_rng(0), budget=whole)
+        self.budget[:] = budget if self.wind is not None else whole
         self.position[:] = position
         self.coverage[:] = coverage
         self.seen_targets[:] = (self.coverage & self.target).sum(axis=1)
@@ -241,7 +269,8 @@ class GridMDP:
             next_cell = np.where(active, next_cell, self.position)
         marked = None if everyone else np.flatnonzero(active)
         newly_seen = mark_fov(self.coverage, self.fov_cells, self.fov_counted, next_cell, marked)
-        outcome = Outcome(next_cell, rejected, lands, active, newly_seen)
+        spent = active if self.wind is None else self.winds.costs(actions, rejected, lands, active)
+        outcome = Outcome(next_cell, rejected, lands, spent, newly_seen)
         return self.apply(outcome, None if everyone else active)
 
     def apply(self, outcome: Outcome, active: np.ndarray | None = None) -> StepOutcome:
@@ -254,7 +283,7 @@ class GridMDP:
         self.budget -= outcome.spent
         self.rejected = outcome.rejected  # the safety flag of the next observation
         self.seen_targets += outcome.newly_seen
-        out_of_budget = self.budget <= 0
+        out_of_budget = self.out_of_budget
         crashed = out_of_budget & ~self.landed
         if outcome.failed is not None:
             crashed |= outcome.failed
@@ -269,20 +298,24 @@ class GridMDP:
 
     # ------------------------------------------------------------------ saving and restoring
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Copies of the per-environment state arrays (:data:`STATE`), e.g. for a checkpoint."""
-        return {k: getattr(self, k).copy() for k in self.STATE}
+        """Copies of the per-environment state arrays (:data:`STATE`, and :data:`WIND_STATE`
+        with the wind option), e.g. for a checkpoint."""
+        return {k: self._array(k).copy() for k in self.state_keys}
+
+    def _array(self, key: str) -> np.ndarray:
+        return getattr(self.winds if key in EpisodeWinds.STATE else self, key)
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
         """The inverse of :meth:`state_dict`. ``ValueError`` naming the first entry that is
         missing, unknown or of another shape or kind; nothing is set unless all of them fit."""
-        unknown = set(state) - set(self.STATE)
+        unknown = set(state) - set(self.state_keys)
         if unknown:
             raise ValueError(f"unknown env state entries {sorted(unknown)}")
         arrays = {}
-        for k in self.STATE:
+        for k in self.state_keys:
             if k not in state:
                 raise ValueError(f"env state lacks {k!r}")
-            mine, value = getattr(self, k), np.asarray(state[k])
+            mine, value = self._array(k), np.asarray(state[k])
             if value.shape != mine.shape or value.dtype.kind != mine.dtype.kind:
                 raise ValueError(
                     f"env state {k!r} is {value.dtype}{list(value.shape)}; "
@@ -293,7 +326,8 @@ class GridMDP:
             if k == "coverage":
                 self.coverage[...] = value  # in place: the flight's camera marks this array
             else:
-                setattr(self, k, value)
+                setattr(self.winds if k in EpisodeWinds.STATE else self, k, value)
+        self.winds.loaded()
 
     # ------------------------------------------------------------------ views of the state
     def observation(self) -> dict[str, np.ndarray]:
@@ -305,8 +339,9 @@ class GridMDP:
             "map": self._map_view,
             "coverage": self.coverage.view(np.int8).reshape(n, h, w).copy(),
             "position": position.reshape(n, h, w),
-            "budget": self.budget.astype(np.float32)[:, None],
+            "budget": np.floor(self.budget).astype(np.float32)[:, None],  # whole units
             "safety": self.rejected.view(np.int8)[:, None].copy(),
+            "wind": self.winds.vector.copy(),
         }
 
     def observation_of(self, i: int) -> dict[str, np.ndarray]:
@@ -319,7 +354,7 @@ class GridMDP:
         """Environment ``i``'s info as Python scalars (the single envs' ``info``)."""
         return {
             "position": divmod(int(self.position[i]), self.width),
-            "budget": int(self.budget[i]),
+            "budget": int(np.floor(self.budget[i])),
             "landed": bool(self.landed[i]),
             "crashed": bool(self.crashed[i]),
             "rejected": bool(self.rejected[i]),
@@ -330,7 +365,7 @@ class GridMDP:
         rows, cols = np.divmod(self.position, self.width)
         return {
             "position": np.stack([rows, cols], axis=1),
-            "budget": self.budget.copy(),
+            "budget": np.floor(self.budget).astype(np.int64),
             "landed": self.landed.copy(),
             "crashed": self.crashed.copy(),
             "rejected": self.rejected.copy(),

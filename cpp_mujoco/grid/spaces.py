@@ -10,13 +10,16 @@ from gymnasium import spaces
 
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 
+MAX_WIND = 100.0  # m/s, bound of the wind observation (the physics config rejects faster winds)
 MAX_BUDGET = 100_000  # upper bound of the budget observation; larger budgets are rejected
 RENDER_MODES = ("rgb_array",)  # every env renders RGB frames: map images or the chase camera
 
 
 def observation_space(height: int, width: int) -> spaces.Dict:
     """``map`` (3,H,W) [landing, target, no-fly], ``coverage`` (H,W), ``position`` (H,W) one-hot,
-    ``budget`` (1,) remaining movement budget, ``safety`` (1,) last action rejected."""
+    ``budget`` (1,) remaining movement budget (whole units), ``safety`` (1,) last action rejected,
+    ``wind`` (2,) the steady wind's velocity east and north, m/s (zeros in the paper's calm MDP).
+    """
     return spaces.Dict(
         {
             "map": spaces.MultiBinary((3, height, width)),
@@ -24,6 +27,7 @@ def observation_space(height: int, width: int) -> spaces.Dict:
             "position": spaces.MultiBinary((height, width)),
             "budget": spaces.Box(0.0, float(MAX_BUDGET), shape=(1,), dtype=np.float32),
             "safety": spaces.MultiBinary(1),
+            "wind": spaces.Box(-MAX_WIND, MAX_WIND, shape=(2,), dtype=np.float32),
         }
     )
 

@@ -107,29 +107,32 @@ class GridVectorEnv(VectorEnv):
                 raise ValueError(f"seed[{i}] must be a non-negative int or None, got {s!r}")
         return [None if s is None else int(s) for s in seeds]
 
-    def _draw_resets(self, idx: np.ndarray, start, budget) -> tuple[np.ndarray, np.ndarray]:
-        """Start cells (row, col) and budgets of the envs ``idx``, each drawn from its own
-        generator in a single env's order (start, then budget) unless given."""
+    def _draw_resets(self, idx: np.ndarray, start, budget):
+        """Start cells (row, col), budgets and wind draws of the envs ``idx``, each drawn from
+        its own generator in a single env's order (start, budget, wind) unless given."""
         rngs, mdp = self.np_random, self.mdp
         draws = np.zeros((idx.size, 2))  # (start, budget) uniforms, in a single env's order
+        wind = np.zeros((idx.size, 3)) if mdp.wind is not None else None
         for j, i in enumerate(idx.tolist()):
             rng = rngs[i]
             if start is None:
                 draws[j, 0] = rng.random()
             if budget is None:
                 draws[j, 1] = rng.random()
+            if wind is not None:
+                wind[j] = rng.random(3)
         if start is None:
             cells = mdp.landing_cells[mdp.draw_start_index(draws[:, 0])]
             start = np.stack(np.divmod(cells, mdp.width), axis=1)
-        return start, (budget if budget is not None else mdp.draw_budget(draws[:, 1]))
+        return start, (budget if budget is not None else mdp.draw_budget(draws[:, 1])), wind
 
     def _reset_envs(self, mask: np.ndarray | None, start=None, budget=None) -> None:
         idx = np.arange(self.num_envs) if mask is None else np.flatnonzero(mask)
         if idx.size == 0:
             return
-        starts, budgets = self._draw_resets(idx, start, budget)
-        # both given: the MDP draws nothing from the generator argument
-        self.mdp.reset(None, mask=mask, start=starts, budget=budgets)
+        starts, budgets, wind = self._draw_resets(idx, start, budget)
+        # all given: the MDP draws nothing from the generator argument
+        self.mdp.reset(None, mask=mask, start=starts, budget=budgets, wind_draws=wind)
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(

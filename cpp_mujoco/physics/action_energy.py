@@ -43,28 +43,38 @@ def _kind(heading: float, wind_from: float) -> str:
     return "upwind" if offset == 0.0 else "downwind" if offset == 180.0 else "crosswind"
 
 
+def flown_sequence(config: PhysicsConfig, seed: int = 0, flight: Flight | None = None):
+    """One flight of the sequence in ``config``'s weather (gusts drawn from ``seed``):
+    ``[(kind, joules), …]`` in the order flown, the settling hover left out. In calm air every
+    heading counts as crosswind (no wind to face)."""
+    flight = flight or Flight(compile_arena(build_arena(_OPEN, config)), _OPEN, config)
+    calm = config.wind_speed == 0.0
+    width = _OPEN.shape[1]
+    middle = 2 * width + 2
+    flight.reset(2, 2, rng=np.random.default_rng(seed))
+    flight.hover(middle)  # settle
+    sequence: list[tuple[str, float]] = []
+    for heading, (row, col) in _HEADINGS.items():
+        out, back = flight.move(row * width + col), flight.move(middle)
+        for h, result in ((heading, out), ((heading + 180.0) % 360.0, back)):
+            _check(result, f"move heading {h:g}°")
+            kind = "crosswind" if calm else _kind(h, config.wind_direction % 360.0)
+            sequence.append((kind, result.energy))
+    sequence.append(("hover", _check(flight.hover(middle), "hover").energy))
+    sequence.append(("land", _check(flight.land(middle), "landing").energy))
+    return sequence
+
+
 def action_energy(config: PhysicsConfig, repeats: int = 1, seed: int = 0) -> ActionEnergy:
     """Fly the sequence ``repeats`` times (seeds ``seed``, ``seed + 1`` …: different gusts) in
-    ``config``'s weather. In calm air every heading counts as crosswind (no wind to face)."""
+    ``config``'s weather."""
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")
     flight = Flight(compile_arena(build_arena(_OPEN, config)), _OPEN, config)
-    calm = config.wind_speed == 0.0
-    width = _OPEN.shape[1]
-    cells = {h: row * width + col for h, (row, col) in _HEADINGS.items()}
-    middle = 2 * width + 2
     energies: dict[str, list[float]] = {k: [] for k in KINDS}
     for r in range(repeats):
-        flight.reset(2, 2, rng=np.random.default_rng(seed + r))
-        flight.hover(middle)  # settle
-        for heading, cell in cells.items():
-            out, back = flight.move(cell), flight.move(middle)
-            for h, result in ((heading, out), ((heading + 180.0) % 360.0, back)):
-                _check(result, f"move heading {h:g}°")
-                kind = "crosswind" if calm else _kind(h, config.wind_direction % 360.0)
-                energies[kind].append(result.energy)
-        energies["hover"].append(_check(flight.hover(middle), "hover").energy)
-        energies["land"].append(_check(flight.land(middle), "landing").energy)
+        for kind, joules in flown_sequence(config, seed + r, flight):
+            energies[kind].append(joules)
     present = {k: v for k, v in energies.items() if v}
     return ActionEnergy(
         wind_speed=config.wind_speed,

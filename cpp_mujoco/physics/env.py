@@ -75,6 +75,11 @@ class MuJoCoEnv(SingleGridEnv):
             **{**{f: getattr(base, f) for f in base.field_names()}, **physics_kw}
         )
         self.grid_config = GridConfig.from_kwargs(grid_config, **grid_kw)
+        if self.grid_config.wind is not None:
+            raise ValueError(
+                "the grid's wind option sets grid costs; in physics the wind is flown: use "
+                "wind_speed, wind_direction and turbulence"
+            )
         super().__init__(load_map(map), self.grid_config, render_mode)
         self.arena = build_arena(self.grid_map, self.config, self.grid_config.fov_side)
         self.model = compile_arena(self.arena)
@@ -103,6 +108,7 @@ class MuJoCoEnv(SingleGridEnv):
         row, col = divmod(int(self.mdp.position[0]), self.mdp.width)
         capacity = float(self.mdp.budget[0]) * self.unit_energy
         self.flight.reset(row, col, capacity, rng=self.np_random)
+        self.mdp.winds.set(0, self.config.wind_speed, self.config.wind_direction)  # observed
         if self.guard is not None:
             self.guard.reset()
         self._last = ActionResult()
