@@ -5,6 +5,7 @@ A, B and C in MuJoCo at ``RATED_WIND`` (9 m/s steady + moderate Dryden turbulenc
 from N, E, S and W with the budgets dealt round-robin to the four (``cpp_mujoco.wind_protocol``):
     python scripts/rated_wind.py                    # the full protocol
     python scripts/rated_wind.py --budget-step 5    # quicker
+    python scripts/rated_wind.py --guard            # also the paper agents and greedy + guard
 Writes out/rated_wind/{rated_wind.md, rated_wind.json}; exits 1 if any no-fly violation.
 """
 
@@ -33,6 +34,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget-step", type=int, default=1, help="protocol budgets step")
     parser.add_argument("--policies", nargs="+", default=None, help="e.g. safe-greedy")
     parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
+    parser.add_argument(
+        "--guard", action="store_true", help="add '+ guard' runs (return_guard=True)"
+    )
     parser.add_argument("--out", default="out/rated_wind", help="output folder")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -40,18 +44,20 @@ def main(argv: list[str] | None = None) -> int:
     table = Table("the rated wind: 9 m/s from N/E/S/W + moderate turbulence", RATED_COLUMNS)
     budgets = protocol_budgets(step=args.budget_step)
     grid_maps = [load_map(m) for m in args.maps]  # a bad map fails before any flight
-    known = {name for g in grid_maps for name, _ in demo_policies(g)}
+    variants = {g.label: _variants(g, args.guard) for g in grid_maps}
+    known = {name for vs in variants.values() for name, _, _ in vs}
     unknown = sorted(set(args.policies or ()) - known)
     if unknown:
         parser.error(f"unknown policies {unknown}; on these maps: {sorted(known)}")
     for grid_map in grid_maps:
-        for name, policy in demo_policies(grid_map):
+        for name, policy, guard in variants[grid_map.label]:
             if args.policies and name not in args.policies:
                 continue
             result = evaluate_in_winds(
                 policy, grid_map, RATED_WIND["wind_speed"], turbulence=RATED_WIND["turbulence"],
                 budgets=budgets, policy_name=name, workers=args.workers,
                 progress=sys.stderr.isatty(),
+                env_kwargs={"return_guard": True} if guard else None,
             )  # fmt: skip
             table.rows.append(rated_row(result))
             print(table.render().splitlines()[-1], flush=True)
@@ -61,6 +67,16 @@ def main(argv: list[str] | None = None) -> int:
     violations = sum(row["values"]["nfz_violations"] for row in table.rows)
     print(f"\nwritten: {out}/rated_wind.md, rated_wind.json; no-fly violations: {violations}")
     return 1 if violations else 0
+
+
+def _variants(grid_map, guard: bool) -> list[tuple[str, object, bool]]:
+    """(name, policy, return guard on) for the map: the demo policies, and with ``guard`` the
+    paper agent and the planner again with the guard (a wind-robust agent flies without)."""
+    policies = demo_policies(grid_map)
+    out = [(name, policy, False) for name, policy in policies]
+    if guard:
+        out += [(f"{n} + guard", p, True) for n, p in policies if not n.startswith("ddqn-wind")]
+    return out
 
 
 if __name__ == "__main__":

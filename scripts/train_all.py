@@ -1,6 +1,11 @@
 """Train the bundled agents for maps A, B, C with the project's training command, one after another.
 
     python scripts/train_all.py --out runs/bundled [--maps A B C] [--minutes 20] [--install]
+    python scripts/train_all.py --wind --out runs/wind [--install]     # A-wind, B-wind, C-wind
+
+``--wind`` trains the wind-robust agents: each starts from the map's bundled paper agent and
+learns in the grid's wind option (:data:`WIND_OPTIONS`, ``docs/agent.md``); ``--install`` then
+writes ``M-wind.pt``.
 
 Each map runs ``cpp-mujoco train --map M --seed 0 --out OUT/M --max-minutes MIN`` (through the same
 argparse handler), then evaluates ``best.pt`` on the full protocol; ``--install`` copies it to
@@ -22,6 +27,13 @@ from cpp_mujoco.agent import BUNDLED_DIR, load_agent
 from cpp_mujoco.cli import main as train_main  # the `cpp-mujoco` command itself
 from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
+
+# the wind-robust agents' training: fine-tune the paper agent in winds of 0..12 m/s (20 % calm),
+# own soft-max exploration only (the planners fly as if every action cost one unit)
+WIND_OPTIONS = [
+    "--wind-max-speed", "12", "--guide-fraction", "0", "--demo-fraction", "0",
+    "--learning-rate", "0.00025", "--total-updates", "10000",
+]  # fmt: skip
 
 
 def _train(cmd: list[str]) -> int:
@@ -57,15 +69,19 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="runs/bundled", help="one run folder per map in here")
     p.add_argument("--maps", nargs="+", default=["A", "B", "C"], help="bundled maps")
     p.add_argument("--seed", type=int, default=0, help="training seed")
-    p.add_argument("--minutes", type=float, default=20.0, help="training minutes per map")
+    p.add_argument("--minutes", type=float, default=None, help="minutes per map (20; --wind: 0)")
+    p.add_argument("--wind", action="store_true", help="train the wind-robust agents M-wind")
     p.add_argument("--install", action="store_true", help="copy best.pt into the package")
     p.add_argument("extra", nargs="*", help="further train options, after --")
     args = p.parse_args(argv)
     summary = {}
+    minutes = args.minutes if args.minutes is not None else (0.0 if args.wind else 20.0)
     for m in args.maps:
         out = Path(args.out) / m
         cmd = ["train", "--map", m, "--seed", str(args.seed), "--out", str(out)]
-        cmd += ["--max-minutes", str(args.minutes), "--no-progress", *args.extra]
+        if args.wind:
+            cmd += [*WIND_OPTIONS, "--init-from", m]
+        cmd += ["--max-minutes", str(minutes), "--no-progress", *args.extra]
         if (out / "checkpoint.pt").exists() and "--overwrite" not in args.extra:
             cmd.append("--resume")
         t0 = time.time()
@@ -89,7 +105,8 @@ def main(argv=None) -> int:
         }
         print(json.dumps({m: summary[m]}), flush=True)
         if args.install:
-            atomic_write_bytes(BUNDLED_DIR / f"{m}.pt", (out / "best.pt").read_bytes())
+            name = f"{m}-wind" if args.wind else m
+            atomic_write_bytes(BUNDLED_DIR / f"{name}.pt", (out / "best.pt").read_bytes())
     atomic_write_text(Path(args.out) / "summary.json", json.dumps(summary, indent=2))
     return 0
 

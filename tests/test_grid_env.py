@@ -36,7 +36,8 @@ def test_check_env_passes_for_bundled_maps():
 def test_reset_observation_and_info():
     env = make()
     obs, info = env.reset(seed=0, options={"start": (4, 0), "budget": 30})
-    assert set(obs) == {"map", "coverage", "position", "budget", "safety"}
+    assert set(obs) == {"map", "coverage", "position", "budget", "safety", "wind"}
+    np.testing.assert_array_equal(obs["wind"], [0.0, 0.0])  # the paper's MDP is calm
     np.testing.assert_array_equal(obs["map"][0], SMALL.landing)
     np.testing.assert_array_equal(obs["map"][1], SMALL.target)
     np.testing.assert_array_equal(obs["map"][2], SMALL.nfz)

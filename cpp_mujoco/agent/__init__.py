@@ -21,12 +21,14 @@ BUNDLED_DIR = Path(__file__).resolve().parent / "bundled"
 
 
 def bundled_agents() -> list[str]:
-    """Names of the bundled agents (one per bundled map)."""
+    """Names of the bundled agents: the paper's agent of each bundled map (``A``) and its
+    wind-robust agent (``A-wind``, trained in the grid's wind option)."""
     return sorted(p.stem for p in BUNDLED_DIR.glob("*.pt"))
 
 
 def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAgent:
-    """A bundled agent by map name (``"A"``, ``"B"``, ``"C"``), or an agent/training checkpoint.
+    """A bundled agent by name (``"A"``, ``"B"``, ``"C"``, ``"A-wind"`` …), or an agent/training
+    checkpoint.
 
     The agent's ``name`` says which: ``ddqn-A`` is the bundled agent, ``ddqn-A (file)`` a user's
     ``A.pt``; ``metadata`` carries ``source`` (the file), ``bundled`` and the file's ``digest``.

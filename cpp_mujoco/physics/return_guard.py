@@ -4,20 +4,22 @@ The paper proposes it ("force navigation to the closest landing zone in the rare
 RL agent misses the right moment to return"); energy-aware return-to-launch rules of the kind
 Di Franco & Buttazzo (2016) describe for coverage missions decide *when* from an energy model.
 Here the model is the flight itself: what moves in each heading (N, E, S, W) and hovers have
-actually cost so far in this episode. A heading's estimated cost is its mean plus ``sigmas``
-standard deviations (floored at ``min_spread`` units, since a few samples understate the
-spread); an unflown heading costs the dearest flown one, raised by how much it faces the wind
-the controller's force observer has felt (an upwind leg costs more), and before any move a
-calibrated calm unit. The way home is the cheapest path to any landing cell under those costs
-(Dijkstra over the accepted moves), plus one unit: the grid's rules need one unit shown to land,
+actually cost so far in this episode, shrunk towards a prior while they are few — the cost of
+that kind of action (upwind, downwind, crosswind, hover) flown in MuJoCo at the wind speed the
+controller's force observer has felt (``grid/wind_costs.json``, ``physics/wind_costs.py``),
+counted as ``prior_weight`` samples. The way home is the path of least expected energy to any
+landing cell (Dijkstra over the accepted moves); its spread adds up the moves' variances, widened
+by the gusts' lag-1 correlation ρ (a sum of n AR(1) costs has at most (1+ρ)/(1−ρ) times the
+variance of n independent ones). The grid's rules need one whole unit left on arrival to land,
 and a landing begun then finishes on the pack's reserve.
 
-Before each action the guard asks: after this action's estimated cost, would the energy left
-still pay for the way home from where it leads, plus ``reserve_units``? If not, it takes over
-and flies the next step of that way home (or lands). It intervenes no more than that: a policy
-heading home on its own keeps control, so it still covers what it meant to on the way back, and
-a policy that turns away again is overruled again. It reads nothing a real autopilot could not
-know (its own energy meter, the map), and it works for any policy.
+Before each action the guard asks: after this action, would the energy left still pay for the
+way home from where it leads — expected cost plus ``sigmas`` standard deviations of this action
+and that way together — plus one unit and ``reserve_units``? If not, it takes over and flies the
+next step of that way home (or lands). It intervenes no more than that: a policy heading home on
+its own keeps control, so it still covers what it meant to on the way back, and a policy that
+turns away again is overruled again. It reads nothing a real autopilot could not know (its own
+energy meter, its wind estimate, the map), and it works for any policy.
 """
 
 from __future__ import annotations
@@ -31,24 +33,20 @@ from scipy.sparse.csgraph import dijkstra
 
 from cpp_mujoco.grid.actions import LAND, NUM_ACTIONS
 from cpp_mujoco.grid.safety import SafetyController
+from cpp_mujoco.grid.wind import KIND_INDEX, wind_costs
 from cpp_mujoco.maps import GridMap
 
 HEADINGS = LAND  # the four moves (N, E, S, W) are actions 0..3
 _UNIT_VECTORS = ((0.0, 1.0), (1.0, 0.0), (0.0, -1.0), (-1.0, 0.0))  # (east, north) per heading
-_REFERENCE_WIND = 9.0  # m/s, where upwind_gain is measured
 
 
 @dataclass(frozen=True)
 class GuardSettings:
     """How cautious the guard is (defaults measured: README "Flying in wind")."""
 
-    sigmas: float = 2.0  # a heading's cost: mean + sigmas · std of its moves this flight
-    min_spread: float = 0.01  # units: the std is at least this (a few samples understate it)
-    reserve_units: float = 0.1  # units kept beyond the estimated way home
-    # an unflown heading costs the dearest flown one × (1 + upwind_gain·(ŵ / 9 m/s)²·cos θ),
-    # ŵ the wind the controller's force observer has felt, θ the heading's angle to upwind:
-    # steady 9 m/s makes an upwind move 1.21 × a downwind one, 12 m/s 1.41 × (scripts/transfer.py)
-    upwind_gain: float = 0.25
+    sigmas: float = 3.0  # margin: standard deviations of this action and the way home together
+    prior_weight: float = 3.0  # the calibrated cost of a kind counts as this many flown samples
+    reserve_units: float = 0.1  # units kept beyond the estimated way home and the landing unit
 
 
 class ReturnGuard:
@@ -72,6 +70,7 @@ class ReturnGuard:
         self._edges = (src, self.safety.next_cell[:, :HEADINGS][accepted])
         self._cells = accepted.shape[0]
         self.landing = np.flatnonzero(grid_map.landing.reshape(-1))
+        self.table = wind_costs()
         self.reset()
 
     def reset(self) -> None:
@@ -90,49 +89,80 @@ class ReturnGuard:
             self._force[0] += float(external_force[0])
             self._force[1] += float(external_force[1])
             self._force_n += 1
+            self._plan = None
         if action == LAND and not rejected:
             return
         self.samples[LAND if rejected else action].append(float(energy_j))
         self._plan = None
 
-    def cost(self, kind: int) -> float:
-        """Estimated J of a move in heading ``kind`` (0..3) or a hover (``LAND``)."""
-        s = self.settings
-        own = self.samples[kind]
-        if len(own) == 0:
-            flown = [np.mean(v) + s.sigmas * self._spread(v) for v in self.samples[:HEADINGS] if v]
-            return self._upwind_factor(kind) * max(flown) if flown else self.unit
-        return float(np.mean(own) + s.sigmas * self._spread(own))
-
-    def _upwind_factor(self, heading: int) -> float:
-        """How much dearer an unflown heading may be, from the wind felt so far."""
-        if self._force_n == 0 or heading == LAND:
-            return 1.0
+    def wind_estimate(self) -> tuple[float, tuple[float, float]]:
+        """(m/s, unit vector (east, north) pointing upwind) from the mean external force felt:
+        quadratic drag ½ρC_dA·w² balances it, and it points where the wind blows to."""
+        if self._force_n == 0:
+            return 0.0, (0.0, 1.0)
         fx, fy = self._force[0] / self._force_n, self._force[1] / self._force_n
         force = math.hypot(fx, fy)
         if force == 0.0:
-            return 1.0
-        wind = math.sqrt(force / self.drag_coefficient)  # m/s: drag ½ρC_dA·w² balances it
-        east, north = _UNIT_VECTORS[heading]
-        upwind = -(east * fx + north * fy) / force  # the force points where the wind blows to
-        gain = self.settings.upwind_gain * (wind / _REFERENCE_WIND) ** 2
-        return 1.0 + gain * max(upwind, 0.0)
+            return 0.0, (0.0, 1.0)
+        return math.sqrt(force / self.drag_coefficient), (-fx / force, -fy / force)
 
-    def _spread(self, values: list[float]) -> float:
-        std = float(np.std(values)) if len(values) > 1 else 0.0
-        return max(std, self.settings.min_spread * self.unit)
+    def prior(self, kind: int) -> tuple[float, float, float]:
+        """(mean J, std J, gust correlation) the calibration flew for a move in heading ``kind``
+        (0..3) or a hover (``LAND``) at the estimated wind; headings between upwind, across and
+        downwind are weighted by the cosine of their angle to upwind."""
+        speed, (ux, uy) = self.wind_estimate()
+        mean, std, rho = self.table.at(np.array([min(speed, self.table.speeds[-1])]))
+        mean, std = mean[0] * self.unit, std[0] * self.unit
+        if kind == LAND:
+            k = KIND_INDEX["hover"]
+            return float(mean[k]), float(std[k]), float(rho[0])
+        east, north = _UNIT_VECTORS[kind]
+        c = east * ux + north * uy  # 1 upwind, 0 across, −1 downwind
+        side = KIND_INDEX["upwind"] if c >= 0 else KIND_INDEX["downwind"]
+        cross = KIND_INDEX["crosswind"]
+        w = abs(c)
+        return (
+            float((1 - w) * mean[cross] + w * mean[side]),
+            float((1 - w) * std[cross] + w * std[side]),
+            float(rho[0]),
+        )
 
-    def way_home(self) -> tuple[np.ndarray, np.ndarray]:
-        """(J from each cell to be over a landing cell, the next cell on that way)."""
+    def stats(self, kind: int) -> tuple[float, float]:
+        """(mean J, variance J²) of a move in heading ``kind`` or a hover (``LAND``): this
+        flight's samples pooled with the prior counted as ``prior_weight`` samples."""
+        own = np.asarray(self.samples[kind])
+        prior_mean, prior_std, _ = self.prior(kind)
+        n0 = self.settings.prior_weight
+        mean = (own.sum() + n0 * prior_mean) / (own.size + n0)
+        spread = ((own - mean) ** 2).sum() + n0 * (prior_std**2 + (prior_mean - mean) ** 2)
+        return float(mean), float(spread / (own.size + n0))
+
+    def cost(self, kind: int) -> float:
+        """Estimated J of one action of ``kind`` with its margin: mean + ``sigmas`` std."""
+        mean, var = self.stats(kind)
+        return mean + self.settings.sigmas * math.sqrt(var)
+
+    def way_home(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(expected J from each cell to be over a landing cell, the variance of that, the next
+        cell on that way)."""
         if self._plan is None:
-            weights = np.array([self.cost(h) for h in range(HEADINGS)])[self._edge_heading]
+            stats = [self.stats(h) for h in range(HEADINGS)]
+            means = np.array([m for m, _ in stats])
+            weights = means[self._edge_heading]
             graph = csr_matrix((weights, self._edges), shape=(self._cells, self._cells))
             # searching the reversed moves from the landing cells: predecessors there are the
             # next cells forward
             dist, pred, _ = dijkstra(
                 graph.T, indices=self.landing, min_only=True, return_predecessors=True
             )
-            self._plan = (dist, pred)
+            variance = np.zeros(self._cells)
+            move_var = np.array([v for _, v in stats])
+            for cell in np.argsort(dist):  # nearer cells first: each adds one move to the next
+                nxt = pred[cell]
+                if nxt >= 0 and np.isfinite(dist[cell]):
+                    heading = np.flatnonzero(self.safety.next_cell[cell, :HEADINGS] == nxt)[0]
+                    variance[cell] = variance[nxt] + move_var[heading]
+            self._plan = (dist, variance, pred)
         return self._plan
 
     # ------------------------------------------------------------------ the decision
@@ -142,12 +172,15 @@ class ReturnGuard:
         self.active = False
         if action == LAND and self.safety.accepted[cell, LAND]:
             return action  # landing already
-        dist, _ = self.way_home()
+        dist, variance, _ = self.way_home()
         if not np.isfinite(dist[cell]):
             return action  # no landing cell is reachable from here: nothing to guard
         nxt, rejected = self.safety.next_cell[cell, action], self.safety.rejected[cell, action]
-        spend = self.cost(LAND if rejected else action)
-        if remaining_j - spend >= dist[nxt] + self.unit * (1.0 + self.settings.reserve_units):
+        mean, var = self.stats(LAND if rejected else action)
+        rho = self.prior(LAND)[2]
+        spread = math.sqrt((var + variance[nxt]) * (1.0 + rho) / (1.0 - rho))
+        needed = mean + dist[nxt] + self.settings.sigmas * spread
+        if remaining_j >= needed + self.unit * (1.0 + self.settings.reserve_units):
             return action
         self.active = True
         self.takeovers += 1
@@ -156,7 +189,7 @@ class ReturnGuard:
     def _homeward(self, cell: int) -> int:
         if self.safety.accepted[cell, LAND]:
             return LAND
-        dist, pred = self.way_home()
+        _, _, pred = self.way_home()
         nxt = pred[cell]
         if nxt < 0:  # no way home at all: hold position (a rejected action), the episode ends
             return LAND

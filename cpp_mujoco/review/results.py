@@ -56,7 +56,8 @@ def paper_landing(grid_map: GridMap) -> float | None:
 
 def demo_policies(map: str | GridMap) -> list[tuple[str, object]]:  # noqa: A002
     """The policies the demo and the transfer tables compare: a bundled map's bundled agent
-    (where there is one), then the safe greedy planner."""
+    (where there is one) and its wind-robust agent (``A-wind``, where there is one), then the
+    safe greedy planner."""
     from cpp_mujoco.agent import bundled_agents, load_agent
     from cpp_mujoco.planners import SafeGreedyPlanner
 
@@ -64,6 +65,8 @@ def demo_policies(map: str | GridMap) -> list[tuple[str, object]]:  # noqa: A002
     policies: list[tuple[str, object]] = []
     if grid_map.bundled and grid_map.name in bundled_agents():
         policies.append((f"ddqn[{grid_map.name}]", load_agent(grid_map.name)))
+    if grid_map.bundled and f"{grid_map.name}-wind" in bundled_agents():
+        policies.append((f"ddqn-wind[{grid_map.name}]", load_agent(f"{grid_map.name}-wind")))
     policies.append(("safe-greedy", SafeGreedyPlanner()))
     return policies
 
