@@ -196,5 +196,5 @@ def test_a_wind_network_started_from_a_calm_agent_acts_as_it_in_any_wind():
     batch = {k: np.asarray(v)[None] for k, v in obs.items()}
     g, b = observation_to_tensors(batch, 1.0)
     gw, bw = observation_to_tensors(batch, 1.0, wind_inputs=True)
-    assert bw.shape == (1, 3) and bw[0, 2] != 0  # the wind reaches the network …
+    assert bw.shape == (1, 4) and bw[0, 2] != 0 and bw[0, 3] > 0  # the wind reaches it …
     torch.testing.assert_close(calm(g, b), windy(gw, bw))  # … with zero weight at first
