@@ -11,6 +11,8 @@ import numpy as np
 
 import cpp_mujoco  # noqa: F401  (registers the envs)
 from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.grid.mdp import GridConfig
+from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.planners import BeamSearchPlanner, SafeGreedyPlanner
 
 
@@ -39,18 +41,28 @@ def benchmark_grid(map_name: str = "A", seconds: float = 3.0, num_envs: int = 10
                 env.reset()
         return 1000
 
-    envs = gym.make_vec("cpp_mujoco/Grid-v0", num_envs=num_envs, map=map_name)
-    envs.reset(seed=0)
     batch_actions = rng.integers(5, size=(64, num_envs))
 
-    def batch_step() -> int:
-        for a in batch_actions:
-            envs.step(a)
-        return 64 * num_envs
+    def batch_stepper(config: GridConfig) -> Callable[[], int]:
+        envs = gym.make_vec("cpp_mujoco/Grid-v0", num_envs=num_envs, map=map_name, config=config)
+        envs.reset(seed=0)
+
+        def batch_step() -> int:
+            for a in batch_actions:
+                envs.step(a)
+            return 64 * num_envs
+
+        return batch_step
 
     result = {
         "single_env_steps_per_s": _timed_loop(single_step, seconds),
-        f"batched_env_steps_per_s_{num_envs}_envs": _timed_loop(batch_step, seconds),
+        f"batched_env_steps_per_s_{num_envs}_envs": _timed_loop(
+            batch_stepper(GridConfig()), seconds
+        ),
+        # the power-variation option: per-action costs from the wind, gusts hashed per step
+        f"batched_wind_env_steps_per_s_{num_envs}_envs": _timed_loop(
+            batch_stepper(GridConfig(wind=GridWind())), seconds
+        ),
     }
     for planner in (SafeGreedyPlanner(), BeamSearchPlanner()):
         start = time.perf_counter()
