@@ -20,8 +20,8 @@ from cpp_mujoco.maps import bundled_maps, load_map
 from cpp_mujoco.review.results import (
     RATED_COLUMNS,
     Table,
-    demo_policies,
     rated_row,
+    wind_variants,
     write_rendered,
     write_tables,
 )
@@ -44,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     table = Table("the rated wind: 9 m/s from N/E/S/W + moderate turbulence", RATED_COLUMNS)
     budgets = protocol_budgets(step=args.budget_step)
     grid_maps = [load_map(m) for m in args.maps]  # a bad map fails before any flight
-    variants = {g.label: _variants(g, args.guard) for g in grid_maps}
+    variants = {g.label: wind_variants(g, args.guard) for g in grid_maps}
     known = {name for vs in variants.values() for name, _, _ in vs}
     unknown = sorted(set(args.policies or ()) - known)
     if unknown:
@@ -67,16 +67,6 @@ def main(argv: list[str] | None = None) -> int:
     violations = sum(row["values"]["nfz_violations"] for row in table.rows)
     print(f"\nwritten: {out}/rated_wind.md, rated_wind.json; no-fly violations: {violations}")
     return 1 if violations else 0
-
-
-def _variants(grid_map, guard: bool) -> list[tuple[str, object, bool]]:
-    """(name, policy, return guard on) for the map: the demo policies, and with ``guard`` the
-    paper agent and the planner again with the guard (a wind-robust agent flies without)."""
-    policies = demo_policies(grid_map)
-    out = [(name, policy, False) for name, policy in policies]
-    if guard:
-        out += [(f"{n} + guard", p, True) for n, p in policies if not n.startswith("ddqn-wind")]
-    return out
 
 
 if __name__ == "__main__":

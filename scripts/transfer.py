@@ -1,15 +1,12 @@
-"""Grid → MuJoCo transfer results: the grid-vs-physics table, per-action energy, the wind sweep.
+"""Grid → MuJoCo transfer results: the grid-vs-physics table and the per-action energy.
 
-Regenerates everything the README's transfer section shows:
-    python scripts/transfer.py                  # calm: full protocol; sweep: every 10th budget
+Regenerates the README's transfer tables (the wind sweep is ``scripts/wind_sweep.py``):
+    python scripts/transfer.py                  # calm: the full protocol
     python scripts/transfer.py --budget-step 5  # quicker transfer table
-Writes out/transfer/{transfer.md, transfer.json, wind_sweep.png, coverage_*.png}.
+Writes out/transfer/{transfer.md, transfer.json, coverage_*.png}.
 
-The sweep flies the bundled agent and the safe greedy planner at 0, 3, 6, 9 and 12 m/s, the wind
-from N, E, S and W with the budgets dealt round-robin to them, in moderate Dryden turbulence
-(``--turbulence``); ``--guard`` adds each policy flown with the return guard. The energy table
-flies single actions on an open map (:mod:`cpp_mujoco.physics.action_energy`): steady wind, and
-the mean over ``--repeats`` gust histories in the sweep's turbulence.
+The energy table flies single actions on an open map (:mod:`cpp_mujoco.physics.action_energy`):
+steady wind, and the mean over ``--repeats`` gust histories in ``--turbulence``.
 """
 
 from __future__ import annotations
@@ -24,19 +21,17 @@ from cpp_mujoco.physics.action_energy import KINDS, action_energy_table
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.turbulence import LEVELS
-from cpp_mujoco.review.plots import coverage_figure, wind_sweep_figure
+from cpp_mujoco.review.plots import coverage_figure
 from cpp_mujoco.review.results import (
-    RATED_COLUMNS,
     TRANSFER_COLUMNS,
     Table,
     demo_policies,
     file_part,
-    rated_row,
     transfer_row,
     write_rendered,
     write_tables,
 )
-from cpp_mujoco.wind_protocol import COMPASS_NAMES, evaluate_in_winds
+from cpp_mujoco.wind_protocol import COMPASS_NAMES
 
 WINDS = (0.0, 3.0, 6.0, 9.0, 12.0)
 
@@ -74,12 +69,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--maps", nargs="+", default=bundled_maps(), help="names or PNG paths")
     parser.add_argument("--budget-step", type=int, default=1, help="MuJoCo protocol budgets step")
-    parser.add_argument("--sweep-step", type=int, default=10, help="wind sweep budgets step")
-    parser.add_argument("--turbulence", default="moderate", choices=LEVELS, help="in the sweep")
+    parser.add_argument("--turbulence", default="moderate", choices=LEVELS, help="energy table")
     parser.add_argument("--repeats", type=int, default=5, help="gust histories per energy row")
-    parser.add_argument(
-        "--guard", action="store_true", help="sweep each policy with return_guard=True too"
-    )
     parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
     parser.add_argument("--out", default="out/transfer", help="output folder")
     args = parser.parse_args(argv)
@@ -89,11 +80,8 @@ def main(argv: list[str] | None = None) -> None:
     energy = energy_table(args.turbulence, args.repeats)
     print(energy.render(), flush=True)
     transfer = Table("grid vs MuJoCo, the same episodes", TRANSFER_COLUMNS)
-    wind = Table(f"MuJoCo under wind + {args.turbulence} turbulence", RATED_COLUMNS)
-    sweep = []
     for grid_map in map(load_map, args.maps):
-        policies = demo_policies(grid_map)
-        name, policy = policies[0]  # the bundled agent where there is one
+        name, policy = demo_policies(grid_map)[0]  # the bundled agent where there is one
         budgets = protocol_budgets(step=args.budget_step)
         grid = evaluate(policy, grid_map, budgets=budgets, policy_name=name)
         physics = evaluate(policy, grid_map, backend="mujoco", budgets=budgets,
@@ -101,30 +89,11 @@ def main(argv: list[str] | None = None) -> None:
         transfer.rows.append(transfer_row(grid, physics))
         coverage_figure([grid, physics], out / f"coverage_{file_part(grid_map.label)}.png")
         print(transfer.render().splitlines()[-1], flush=True)
-        variants = [(n, p, False) for n, p in policies]
-        if args.guard:
-            variants += [  # the wind-robust agent is measured as it is meant to fly: unguarded
-                (f"{n} + guard", p, True) for n, p in policies if not n.startswith("ddqn-wind")
-            ]
-        for name, policy, guard in variants:
-            for speed in WINDS:
-                result = evaluate_in_winds(
-                    policy, grid_map, speed, turbulence=args.turbulence if speed else "none",
-                    budgets=protocol_budgets(step=args.sweep_step), policy_name=name,
-                    workers=args.workers, progress=progress,
-                    env_kwargs={"return_guard": True} if guard else None,
-                )  # fmt: skip
-                sweep.append(result)
-                wind.rows.append(rated_row(result))
-                print(wind.render().splitlines()[-1], flush=True)
     print(transfer.render())
-    print()
-    print(wind.render())
-    tables = {"energy": energy, "transfer": transfer, "wind": wind}
+    tables = {"energy": energy, "transfer": transfer}
     write_tables(out / "transfer.json", tables)
     write_rendered(out / "transfer.md", tables, "markdown")
-    wind_sweep_figure(sweep, out / "wind_sweep.png")
-    print(f"\nwritten: {out}/transfer.md, transfer.json, wind_sweep.png, coverage_*.png")
+    print(f"\nwritten: {out}/transfer.md, transfer.json, coverage_*.png")
 
 
 if __name__ == "__main__":

@@ -71,6 +71,17 @@ def demo_policies(map: str | GridMap) -> list[tuple[str, object]]:  # noqa: A002
     return policies
 
 
+def wind_variants(map: str | GridMap, guard: bool = True) -> list[tuple[str, object, bool]]:  # noqa: A002
+    """(name, policy, return guard on) compared in wind: the demo policies, and with ``guard``
+    the paper agent and the planner again flown with the return guard (``name + guard``); a
+    wind-robust agent flies as it is meant to, unguarded."""
+    policies = demo_policies(map)
+    out = [(name, policy, False) for name, policy in policies]
+    if guard:
+        out += [(f"{n} + guard", p, True) for n, p in policies if not n.startswith("ddqn-wind")]
+    return out
+
+
 # ------------------------------------------------------------------------------- row builders
 def _pct(ratio: float) -> str:
     return f"{ratio:.2%}"
