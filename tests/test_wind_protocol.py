@@ -77,3 +77,36 @@ def test_the_rated_wind_keeps_the_bundled_agent_out_of_no_fly_airspace():
     # a crash in wind is an emergency landing where the UAV was, never a fall
     reasons = set(result.physics["crash_reason"].tolist()) - {""}
     assert all("emergency landing" in r or r == "budget exhausted before landing" for r in reasons)
+
+
+def test_the_wind_sweep_script_writes_its_table_pivot_and_figure(tmp_path):
+    """``scripts/wind_sweep.py`` on a small map, the planner with and without the guard, calm
+    and 3 m/s: every point is a row with its weather, the pivot has one row per policy, the JSON
+    carries the conditions, and the figure is written; an unknown policy is a one-line error."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "wind_sweep.py"
+    spec = importlib.util.spec_from_file_location("wind_sweep_script", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    png = tmp_path / "small.png"
+    GridMap.from_ascii(["LTTT", "TTTT", "TTTL"], name="small").save(png)
+    args = ["--maps", str(png), "--speeds", "0", "3", "--sweep-step", "50", "--workers", "1"]
+    args += ["--out", str(tmp_path), "--policies", "safe-greedy", "safe-greedy + guard"]
+    assert script.main(args) == 0
+    tables = json.loads((tmp_path / "wind_sweep.json").read_text())
+    points = tables["points"]["rows"]
+    assert [(r["policy"], r["weather"].split(" ")[0]) for r in points] == [
+        ("safe-greedy", "calm"), ("safe-greedy", "3"),
+        ("safe-greedy + guard", "calm"), ("safe-greedy + guard", "3"),
+    ]  # fmt: skip
+    guarded = points[2]["conditions"]["env_kwargs"]
+    assert guarded["return_guard"] is True
+    pivot = tables["sweep"]["rows"]
+    assert [r["policy"] for r in pivot] == ["safe-greedy", "safe-greedy + guard"]
+    assert all("%" in r["0 m/s"] and "%" in r["3 m/s"] for r in pivot)
+    assert (tmp_path / "wind_sweep.png").stat().st_size > 10_000
+    with pytest.raises(SystemExit):
+        script.main(["--maps", str(png), "--policies", "ddqn[Z]", "--out", str(tmp_path)])
