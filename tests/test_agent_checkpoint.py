@@ -145,5 +145,7 @@ def test_truncated_garbage_and_foreign_files(run_dir, tmp_path):
 
 
 def test_unknown_bundled_name():
-    with pytest.raises(CheckpointError, match="unknown agent 'Z'; bundled: A, B, C"):
+    with pytest.raises(
+        CheckpointError, match="unknown agent 'Z'; bundled: A, A-wind, B, B-wind, C, C-wind"
+    ):
         load_agent("Z")

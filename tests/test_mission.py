@@ -78,7 +78,7 @@ def test_an_interrupted_mission_leaves_readable_files_that_say_so(tmp_path):
 def test_fly_bad_input_messages(tmp_path, small_map, capsys):
     assert main(["fly", "--map", "A", "--agent", "nonexistent"]) == 2
     err = capsys.readouterr().err
-    assert "'nonexistent'" in err and "bundled: A, B, C" in err
+    assert "'nonexistent'" in err and "bundled: A, A-wind, B, B-wind, C, C-wind" in err
     assert main(["fly", "--map", str(small_map), "--planner", "safe-greedy", "--start", "x"]) == 2
     assert "ROW,COL" in capsys.readouterr().err
     blocker = tmp_path / "file"
