@@ -12,7 +12,7 @@ from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.grid.wind import KIND_INDEX, GridWind, wind_costs
-from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.maps import GridMap
 
 # 5×5, landing block in the middle column, no-fly cell in the north-east corner
 OPEN = GridMap.from_ascii(["TTTTN", "TTTTT", "TTLTT", "TTLTT", "TTTTT"], name="open")

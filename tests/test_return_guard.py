@@ -1,16 +1,15 @@
 """The return guard: its energy bookkeeping, its way home, and that it brings the UAV back."""
 
 import gymnasium as gym
-import numpy as np
 import pytest
 
 import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
+from cpp_mujoco.grid.wind import KIND_INDEX, wind_costs
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.grid.wind import KIND_INDEX, wind_costs
 from cpp_mujoco.physics.return_guard import GuardSettings, ReturnGuard
 
 STRIP = GridMap.from_ascii(["LTTTTTTT", "TTTTTTTT"], name="strip")
