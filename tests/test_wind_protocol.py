@@ -104,6 +104,8 @@ def test_the_wind_sweep_script_writes_its_table_pivot_and_figure(tmp_path):
     ]  # fmt: skip
     guarded = points[2]["conditions"]["env_kwargs"]
     assert guarded["return_guard"] is True
+    takeovers = [r["values"]["guard_takeovers"] for r in points]
+    assert takeovers[:2] == [0, 0] and all(t >= 0 for t in takeovers[2:])  # counted, per point
     pivot = tables["sweep"]["rows"]
     assert [r["policy"] for r in pivot] == ["safe-greedy", "safe-greedy + guard"]
     assert all("%" in r["0 m/s"] and "%" in r["3 m/s"] for r in pivot)

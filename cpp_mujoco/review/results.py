@@ -214,6 +214,9 @@ def rated_row(result) -> dict:
     reasons, counts = np.unique(result.physics["crash_reason"], return_counts=True)
     crashes = {str(r): int(n) for r, n in zip(reasons, counts, strict=True) if r}
     values = {**_numbers(result), "crash_reasons": crashes}
+    if "guard_takeovers" in result.physics:  # how often the return guard chose the action
+        values["guard_takeovers"] = int(np.sum(result.physics["guard_takeovers"]))
+        values["guard_episodes"] = int(np.count_nonzero(result.physics["guard_takeovers"]))
     return _row(result, cells, values, result.conditions)
 
 
