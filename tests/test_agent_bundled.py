@@ -52,7 +52,7 @@ def test_wind_agent_reads_the_wind_and_lands_where_the_paper_agent_crashes(name)
     """A wind-robust agent's network reads budget and wind. In the grid's wind option at 9 m/s
     (N/E/S/W, gusts) it lands in ≥ 95 % of the full protocol where the paper agent of its map
     lands in 43–65 %, and in the paper's calm MDP it still lands in ≥ 97 % (measured: 97.6 /
-    100 / 99.5 % on A / B / C — short of issue 12's 99.9 %, docs/agent.md)."""
+    100 / 99.5 % on A / B / C — short of the 99.9 % target, docs/agent.md)."""
     agent = load_agent(name)
     grid_name = name.removesuffix("-wind")
     assert agent.network.wind_inputs and agent.metadata["map"] == grid_name
