@@ -21,7 +21,7 @@ from cpp_mujoco.review.results import (
     RATED_COLUMNS,
     Table,
     rated_row,
-    wind_variants,
+    select_wind_variants,
     write_rendered,
     write_tables,
 )
@@ -44,15 +44,12 @@ def main(argv: list[str] | None = None) -> int:
     table = Table("the rated wind: 9 m/s from N/E/S/W + moderate turbulence", RATED_COLUMNS)
     budgets = protocol_budgets(step=args.budget_step)
     grid_maps = [load_map(m) for m in args.maps]  # a bad map fails before any flight
-    variants = {g.label: wind_variants(g, args.guard) for g in grid_maps}
-    known = {name for vs in variants.values() for name, _, _ in vs}
-    unknown = sorted(set(args.policies or ()) - known)
-    if unknown:
-        parser.error(f"unknown policies {unknown}; on these maps: {sorted(known)}")
+    try:
+        variants = select_wind_variants(grid_maps, args.policies, args.guard)
+    except ValueError as exc:
+        parser.error(str(exc))
     for grid_map in grid_maps:
         for name, policy, guard in variants[grid_map.label]:
-            if args.policies and name not in args.policies:
-                continue
             result = evaluate_in_winds(
                 policy, grid_map, RATED_WIND["wind_speed"], turbulence=RATED_WIND["turbulence"],
                 budgets=budgets, policy_name=name, workers=args.workers,

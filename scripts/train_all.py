@@ -100,6 +100,7 @@ def main(argv=None) -> int:
         summary[m] = {
             "command": "cpp-mujoco " + " ".join(cmd),
             "wall_s": round(time.time() - t0, 1),
+            "evaluated_on": "the full protocol on the grid, calm air (the paper's MDP)",
             "landing_ratio": res.landing_ratio,
             "coverage_ratio": res.coverage_ratio,
         }

@@ -24,8 +24,8 @@ from cpp_mujoco.review.results import (
     RATED_COLUMNS,
     Table,
     rated_row,
+    select_wind_variants,
     wind_speed,
-    wind_variants,
     write_rendered,
     write_tables,
 )
@@ -62,18 +62,15 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     grid_maps = [load_map(m) for m in args.maps]  # a bad map fails before any flight
-    variants = {g.label: wind_variants(g) for g in grid_maps}
-    known = {name for vs in variants.values() for name, _, _ in vs}
-    unknown = sorted(set(args.policies or ()) - known)
-    if unknown:
-        parser.error(f"unknown policies {unknown}; on these maps: {sorted(known)}")
+    try:
+        variants = select_wind_variants(grid_maps, args.policies)
+    except ValueError as exc:
+        parser.error(str(exc))
     budgets = protocol_budgets(step=args.sweep_step)  # 75, the top, always included
     points = Table(f"MuJoCo under wind + {args.turbulence} turbulence", RATED_COLUMNS)
     results = []
     for grid_map in grid_maps:
         for name, policy, guard in variants[grid_map.label]:
-            if args.policies and name not in args.policies:
-                continue
             for speed in args.speeds:
                 result = evaluate_in_winds(
                     policy, grid_map, speed, turbulence=args.turbulence if speed else "none",

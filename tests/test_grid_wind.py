@@ -198,3 +198,23 @@ def test_a_wind_network_started_from_a_calm_agent_acts_as_it_in_any_wind():
     gw, bw = observation_to_tensors(batch, 1.0, wind_inputs=True)
     assert bw.shape == (1, 4) and bw[0, 2] != 0 and bw[0, 3] > 0  # the wind reaches it …
     torch.testing.assert_close(calm(g, b), windy(gw, bw))  # … with zero weight at first
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--init-from", "Z"], "unknown agent 'Z'"),
+        (["--init-from", "A-wind"], "without wind inputs from one with them"),
+        (["--wind-max-speed", "12", "--wind-calm-fraction", "nan"], "must be finite"),
+        (["--wind-max-speed", "30"], "calibrated range"),
+    ],
+)
+def test_bad_wind_training_options_fail_before_the_run_folder_exists(
+    tmp_path, capsys, options, message
+):
+    from cpp_mujoco.cli import main
+
+    out = tmp_path / "run"
+    code = main(["train", "--map", "A", "--out", str(out), "--total-updates", "1", *options])
+    assert code == 2 and message in capsys.readouterr().err
+    assert not out.exists()

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
 
+from cpp_mujoco.grid.wind import GridWind
+
 
 @dataclass
 class TrainConfig:
@@ -105,12 +107,11 @@ class TrainConfig:
                 raise ValueError(f"{name} must be a finite number >= 0, got {getattr(self, name)}")
         if not 0 < self.learning_rate < float("inf"):
             raise ValueError(f"learning_rate must be > 0, got {self.learning_rate}")
+        self.wind  # noqa: B018 - GridWind checks the wind options now, before any run folder
 
     @property
     def wind(self):
         """The grid's wind option this config trains in (None: the paper's unit costs)."""
-        from cpp_mujoco.grid.wind import GridWind
-
         if not self.wind_max_speed:
             return None
         return GridWind(max_speed=self.wind_max_speed, calm_fraction=self.wind_calm_fraction)

@@ -75,11 +75,7 @@ class QNetwork(nn.Module):
     def load_narrower(self, source: QNetwork) -> None:
         """Start from ``source``'s weights (same map size; it may lack wind inputs): the wind
         inputs' weights start at zero, so this network first acts exactly as ``source``."""
-        if (source.height, source.width) != (self.height, self.width):
-            raise ValueError(
-                f"cannot start a {self.height}x{self.width} network from a "
-                f"{source.height}x{source.width} one"
-            )
+        check_can_start_from(source, self.height, self.width, self.wind_inputs)
         state = source.state_dict()
         first = self.head[0].weight
         if state["head.0.weight"].shape[1] != first.shape[1]:
@@ -87,6 +83,20 @@ class QNetwork(nn.Module):
             widened[:, : state["head.0.weight"].shape[1]] = state["head.0.weight"]
             state["head.0.weight"] = widened
         self.load_state_dict(state)
+
+
+def check_can_start_from(source: QNetwork, height: int, width: int, wind_inputs: bool) -> None:
+    """``ValueError`` unless an H×W network (with or without wind inputs) can start from
+    ``source``'s weights (:meth:`QNetwork.load_narrower`): same map size, no inputs it lacks."""
+    if (source.height, source.width) != (height, width):
+        raise ValueError(
+            f"cannot start a {height}x{width} network from a {source.height}x{source.width} one"
+        )
+    if source.wind_inputs and not wind_inputs:
+        raise ValueError(
+            "cannot start a network without wind inputs from one with them (train in the wind "
+            "option: wind_max_speed > 0)"
+        )
 
 
 def count_parameters(module: nn.Module) -> int:

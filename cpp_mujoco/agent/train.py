@@ -32,7 +32,12 @@ from cpp_mujoco.agent.checkpoint import (
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.ddqn import ddqn_update, softmax_actions
 from cpp_mujoco.agent.demonstrations import record_demonstrations
-from cpp_mujoco.agent.network import QNetwork, observation_to_tensors, scalar_inputs
+from cpp_mujoco.agent.network import (
+    QNetwork,
+    check_can_start_from,
+    observation_to_tensors,
+    scalar_inputs,
+)
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.replay import ReplayBuffer
 from cpp_mujoco.agent.run_folder import StopSignals, TrainingInterrupted, claim_run_folder
@@ -45,7 +50,13 @@ from cpp_mujoco.review.training_plot import write_training_log
 
 
 class Trainer:
-    def __init__(self, config: TrainConfig, out_dir: str | os.PathLike):
+    def __init__(
+        self,
+        config: TrainConfig,
+        out_dir: str | os.PathLike,
+        init_network: QNetwork | None = None,
+    ):
+        """``init_network``: the weights ``config.init_from`` names, if already loaded."""
         self.config = c = config
         self.out = Path(out_dir)
         self.device = torch.device(c.device)
@@ -66,9 +77,7 @@ class Trainer:
         self.online = QNetwork(h, w, wind_inputs=c.wind is not None).to(self.device)
         self.target = QNetwork(h, w, wind_inputs=c.wind is not None).to(self.device)
         if c.init_from:  # fine-tuning: a resume then overwrites these weights with its own
-            from cpp_mujoco.agent import load_agent
-
-            self.online.load_narrower(load_agent(c.init_from).network)
+            self.online.load_narrower(init_network or initial_network(c))
         self.target.load_state_dict(self.online.state_dict())
         self.optimizer = torch.optim.Adam(
             self.online.parameters(), lr=c.learning_rate, eps=c.adam_eps
@@ -369,6 +378,13 @@ class Trainer:
             )
 
 
+def initial_network(config: TrainConfig) -> QNetwork:
+    """The network of the agent ``config.init_from`` names (bundled name or file)."""
+    from cpp_mujoco.agent import load_agent  # the package imports this module
+
+    return load_agent(config.init_from).network
+
+
 def _concat(a: dict, b: dict) -> dict:
     """Concatenate two sampled batches field by field (``obs``/``next_obs`` are pairs)."""
     out = {}
@@ -393,8 +409,12 @@ def train(
     A non-empty ``out_dir`` needs ``resume`` (continue its checkpoint) or ``overwrite`` (replace
     the run): :class:`~cpp_mujoco.agent.run_folder.RunFolderError` otherwise, before any write.
     """
+    start = None
+    if config.init_from:  # a bad name or an unfit network fails before the folder is claimed
+        start = initial_network(config)
+        check_can_start_from(start, *load_map(config.map).shape, config.wind is not None)
     with claim_run_folder(out_dir, resume=resume, overwrite=overwrite) as out:
-        trainer = Trainer(config, out)
+        trainer = Trainer(config, out, init_network=start)
         if resume and trainer.resume():
             print(f"resuming {out / 'checkpoint.pt'} at update {trainer.updates}")
         elif resume:

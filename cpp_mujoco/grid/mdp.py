@@ -298,8 +298,8 @@ class GridMDP:
 
     # ------------------------------------------------------------------ saving and restoring
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Copies of the per-environment state arrays (:data:`STATE`, and :data:`WIND_STATE`
-        with the wind option), e.g. for a checkpoint."""
+        """Copies of the per-environment state arrays (:data:`STATE`, and
+        :data:`EpisodeWinds.STATE` with the wind option), e.g. for a checkpoint."""
         return {k: self._array(k).copy() for k in self.state_keys}
 
     def _array(self, key: str) -> np.ndarray:

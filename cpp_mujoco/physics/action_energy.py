@@ -92,6 +92,24 @@ def _check(result, what: str):
     return result
 
 
+def weathers(
+    base: PhysicsConfig,
+    speeds: tuple[float, ...],
+    directions: tuple[float, ...],
+    turbulence: str,
+):
+    """``base`` in calm air and at every speed × direction (one calm config: in calm air the
+    direction means nothing), with ``turbulence`` above 0 m/s."""
+    for speed in speeds:
+        for direction in directions if speed > 0 else (0.0,):
+            yield replace(
+                base,
+                wind_speed=speed,
+                wind_direction=direction,
+                turbulence=turbulence if speed > 0 else "none",
+            )
+
+
 def action_energy_table(
     base: PhysicsConfig,
     speeds: tuple[float, ...] = (0.0, 3.0, 6.0, 9.0, 12.0),
@@ -100,14 +118,6 @@ def action_energy_table(
     repeats: int = 1,
 ) -> list[ActionEnergy]:
     """:func:`action_energy` for calm air and every speed × direction."""
-    rows = []
-    for speed in speeds:
-        for direction in directions if speed > 0 else (0.0,):
-            config = replace(
-                base,
-                wind_speed=speed,
-                wind_direction=direction,
-                turbulence=turbulence if speed > 0 else "none",
-            )
-            rows.append(action_energy(config, repeats))
-    return rows
+    return [
+        action_energy(config, repeats) for config in weathers(base, speeds, directions, turbulence)
+    ]

@@ -157,11 +157,12 @@ class ReturnGuard:
             )
             variance = np.zeros(self._cells)
             move_var = np.array([v for _, v in stats])
+            # the heading of each cell's step home (argmax: a cell's one move that reaches pred)
+            step_var = move_var[(self.safety.next_cell[:, :HEADINGS] == pred[:, None]).argmax(1)]
             for cell in np.argsort(dist):  # nearer cells first: each adds one move to the next
                 nxt = pred[cell]
                 if nxt >= 0 and np.isfinite(dist[cell]):
-                    heading = np.flatnonzero(self.safety.next_cell[cell, :HEADINGS] == nxt)[0]
-                    variance[cell] = variance[nxt] + move_var[heading]
+                    variance[cell] = variance[nxt] + step_var[cell]
             self._plan = (dist, variance, pred)
         return self._plan
 

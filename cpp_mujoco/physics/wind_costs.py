@@ -14,11 +14,10 @@ from __future__ import annotations
 
 import hashlib
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
 
 import numpy as np
 
-from cpp_mujoco.physics.action_energy import KINDS, flown_sequence
+from cpp_mujoco.physics.action_energy import KINDS, flown_sequence, weathers
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 
@@ -44,16 +43,11 @@ def measure_wind_costs(
     """
     base = base or PhysicsConfig()
     unit = unit_energy(base)
-    jobs = []
-    for speed in speeds:
-        for direction in DIRECTIONS if speed > 0 else (0.0,):
-            config = replace(
-                base,
-                wind_speed=speed,
-                wind_direction=direction,
-                turbulence=turbulence if speed > 0 else "none",
-            )
-            jobs += [(speed, (config, seed)) for seed in range(repeats)]
+    jobs = [
+        (config.wind_speed, (config, seed))
+        for config in weathers(base, speeds, DIRECTIONS, turbulence)
+        for seed in range(repeats)
+    ]
     if workers > 1:
         with ProcessPoolExecutor(workers) as pool:
             flown = list(pool.map(_fly, [job for _, job in jobs]))

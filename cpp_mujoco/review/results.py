@@ -82,6 +82,17 @@ def wind_variants(map: str | GridMap, guard: bool = True) -> list[tuple[str, obj
     return out
 
 
+def select_wind_variants(grid_maps, names=None, guard: bool = True) -> dict[str, list]:
+    """:func:`wind_variants` of each map (by label), only those ``names`` picks (None: all);
+    ``ValueError`` naming a name no map has, before anything is flown."""
+    variants = {g.label: wind_variants(g, guard) for g in grid_maps}
+    known = {name for vs in variants.values() for name, _, _ in vs}
+    unknown = sorted(set(names or ()) - known)
+    if unknown:
+        raise ValueError(f"unknown policies {unknown}; on these maps: {sorted(known)}")
+    return {label: [v for v in vs if not names or v[0] in names] for label, vs in variants.items()}
+
+
 # ------------------------------------------------------------------------------- row builders
 def _pct(ratio: float) -> str:
     return f"{ratio:.2%}"
