@@ -133,6 +133,15 @@ class GridVectorEnv(VectorEnv):
         starts, budgets, wind = self._draw_resets(idx, start, budget)
         # all given: the MDP draws nothing from the generator argument
         self.mdp.reset(None, mask=mask, start=starts, budget=budgets, wind_draws=wind)
+        self._on_reset(idx)
+
+    # ------------------------------------------------------------------ what a backend adds
+    def _on_reset(self, idx: np.ndarray) -> None:
+        """Backend state of the envs ``idx`` to reset after the MDP drew their episodes."""
+
+    def _transition(self, actions: np.ndarray, active: np.ndarray):
+        """One action per env (those not ``active`` wait); ends in ``self.mdp.apply``."""
+        return self.mdp.step(actions, active=active)
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -164,7 +173,7 @@ class GridVectorEnv(VectorEnv):
             )
         actions = actions.astype(np.int64, copy=False).reshape(self.num_envs)
         resetting = self._pending_reset
-        out = self.mdp.step(actions, active=~resetting & ~self.mdp.done)
+        out = self._transition(actions, ~resetting & ~self.mdp.done)
         terminated = out.terminated & ~resetting
         truncated = np.zeros(self.num_envs, dtype=bool)
         if self.autoreset_mode is AutoresetMode.NEXT_STEP:

@@ -46,6 +46,23 @@ def split_kwargs(kwargs: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]
     )
 
 
+def make_configs(
+    config: PhysicsConfig | None, grid_config: GridConfig | None, kwargs: dict[str, Any]
+) -> tuple[PhysicsConfig, GridConfig]:
+    """The physics and grid configs of a ``MuJoCo-v0`` env (single or batched): the given
+    configs with the keywords (:func:`split_kwargs`) on top."""
+    physics_kw, grid_kw = split_kwargs(kwargs)
+    base = config or PhysicsConfig()
+    physics = PhysicsConfig(**{**{f: getattr(base, f) for f in base.field_names()}, **physics_kw})
+    grid = GridConfig.from_kwargs(grid_config, **grid_kw)
+    if grid.wind is not None:
+        raise ValueError(
+            "the grid's wind option sets grid costs; in physics the wind is flown: use "
+            "wind_speed, wind_direction and turbulence"
+        )
+    return physics, grid
+
+
 class MuJoCoEnv(SingleGridEnv):
     """The coverage MDP in physics. ``map`` is a bundled name, a PNG path or a :class:`GridMap`;
     keywords set :class:`PhysicsConfig` fields (``wind_speed=5``; the controller's bandwidths as
@@ -69,17 +86,7 @@ class MuJoCoEnv(SingleGridEnv):
         render_size: tuple[int, int] = (512, 384),  # multiples of 16 for video codecs
         **kwargs: Any,
     ):
-        physics_kw, grid_kw = split_kwargs(kwargs)
-        base = config or PhysicsConfig()
-        self.config = PhysicsConfig(
-            **{**{f: getattr(base, f) for f in base.field_names()}, **physics_kw}
-        )
-        self.grid_config = GridConfig.from_kwargs(grid_config, **grid_kw)
-        if self.grid_config.wind is not None:
-            raise ValueError(
-                "the grid's wind option sets grid costs; in physics the wind is flown: use "
-                "wind_speed, wind_direction and turbulence"
-            )
+        self.config, self.grid_config = make_configs(config, grid_config, kwargs)
         super().__init__(load_map(map), self.grid_config, render_mode)
         self.arena = build_arena(self.grid_map, self.config, self.grid_config.fov_side)
         self.model = compile_arena(self.arena)

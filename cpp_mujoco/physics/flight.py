@@ -60,6 +60,19 @@ def quat_to_mat(w: float, x: float, y: float, z: float) -> tuple[float, ...]:
     )  # fmt: skip
 
 
+def ground_contact(data, gear: frozenset, quad: frozenset, ground: int) -> bool | None:
+    """None without a contact between the quadrotor (geoms ``quad``) and the ``ground`` geom;
+    True if only the landing ``gear`` touches it, else False."""
+    if data.ncon == 0:
+        return None
+    g1, g2 = data.contact.geom1[: data.ncon].tolist(), data.contact.geom2[: data.ncon].tolist()
+    touching = [a if b == ground else b for a, b in zip(g1, g2, strict=True) if ground in (a, b)]
+    touching = [g for g in touching if g in quad]
+    if not touching:
+        return None
+    return all(g in gear for g in touching)
+
+
 class Flight:
     """A quadrotor flying over a grid map in a compiled arena model.
 
@@ -338,19 +351,7 @@ class Flight:
         return out
 
     def _ground_contact(self) -> bool | None:
-        """None without contact; True if the landing gear touches the ground, else False."""
-        d = self.data
-        if d.ncon == 0:
-            return None
-        g1, g2 = d.contact.geom1[: d.ncon].tolist(), d.contact.geom2[: d.ncon].tolist()
-        gear, quad, ground = self.gear_geoms, self.quad_geoms, self.ground_id
-        touching = [
-            a if b == ground else b for a, b in zip(g1, g2, strict=True) if ground in (a, b)
-        ]
-        touching = [g for g in touching if g in quad]
-        if not touching:
-            return None
-        return all(g in gear for g in touching)
+        return ground_contact(self.data, self.gear_geoms, self.quad_geoms, self.ground_id)
 
     def _settle(self, seconds: float = 0.3) -> None:
         """Motors off after touchdown; let the airframe come to rest on its skids."""

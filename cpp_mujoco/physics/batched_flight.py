@@ -1,0 +1,330 @@
+"""N quadrotors flying grid actions together: one numpy control law, N ``MjData`` in threads.
+
+Why this shape: a single :class:`~cpp_mujoco.physics.flight.Flight` spends about as long in its
+Python control tick as MuJoCo spends on the five physics steps between ticks. Here the tick's
+work (references, controller, energy, battery, wind, drag, failure checks) is done once for all
+drones as arrays (:mod:`~cpp_mujoco.physics.batched_control`,
+:mod:`~cpp_mujoco.physics.batched_power`), and each drone keeps its own ``MjData`` — so its
+contacts (touchdown) and camera pose (coverage) are MuJoCo's own, exactly as in the single
+flight — stepped by ``mj_step``, which releases the GIL, over a small thread pool. (MuJoCo's
+``rollout`` module steps states, not persistent ``MjData``: it would lose both.)
+
+A macro-action ends at a different time for each drone; the drones that are done wait (no
+physics) while the others fly, so every drone's flight is the one its single flight would fly.
+What stays per drone in plain Python is what happens at camera rate or once per action: the
+coverage frames (:class:`~cpp_mujoco.physics.camera.CoverageCamera`), touchdown checks while
+landing, and the motors-off settle after touchdown.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import ThreadPoolExecutor
+
+import mujoco
+import numpy as np
+
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.batched_camera import BatchedCamera
+from cpp_mujoco.physics.batched_control import (
+    BatchedController,
+    References,
+    air_in_body,
+    drag_force,
+    quat_to_mat,
+)
+from cpp_mujoco.physics.batched_power import BatchedBattery, BatchedEnergy, BatchedWind
+from cpp_mujoco.physics.battery import CUTOFF
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.flight import EMERGENCY_LANDING, Flight, ground_contact
+
+MOVE, HOVER, LAND = 0, 1, 2  # the three kinds of macro-action
+_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS  # time, qpos, qvel, act (+ plugin state)
+_INPUT = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+
+
+class BatchedFlight:
+    """``n`` drones over one map and model. ``coverage``: the (n, H·W) bool rows the cameras
+    mark (the env passes its MDP's); ``threads``: how many threads step the physics."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        grid_map: GridMap,
+        config: PhysicsConfig,
+        n: int,
+        coverage: np.ndarray,
+        threads: int = 1,
+    ):
+        # the single flight holds every constant (parameters, tolerances, geometry, the scalar
+        # models whose twins fly here): one place to derive them
+        self.one = one = Flight(model, grid_map, config)
+        self.model, self.config, self.n, self.k, self.dt = model, config, n, one.k, one.dt
+        self.datas = [mujoco.MjData(model) for _ in range(n)]
+        self.camera = BatchedCamera(model, self.datas, one.geo, config, grid_map.target, coverage)
+        self.coverage = coverage
+        self.controller = BatchedController(one.controller, n)
+        self.energy_of = BatchedEnergy(one.interval_energy)
+        self.battery = BatchedBattery(one.battery.spec, n)
+        self.wind = BatchedWind(one.wind, n)
+        self.refs = References(n, one.controller.lead, config.land_duration, config.land_speed)
+        nq, nv = model.nq, model.nv
+        self.state = np.zeros((n, mujoco.mj_stateSize(model, _STATE)))
+        self.inputs = np.zeros((n, mujoco.mj_stateSize(model, _INPUT)))
+        jnt = int(model.body_jntadr[model.body_parentid[one.params.body_id]])
+        q0, v0 = 1 + int(model.jnt_qposadr[jnt]), 1 + nq + int(model.jnt_dofadr[jnt])
+        self.cols = (slice(q0, q0 + 7), slice(v0, v0 + 6), slice(1 + nq + nv, 1 + nq + nv + 4))
+        nu = model.nu
+        self.ctrl_cols = slice(0, nu)
+        b = one.params.body_id
+        self.force_cols = slice(nu + 6 * b, nu + 6 * b + 3)
+        self.capacity = np.full(n, math.inf)
+        self.energy_used = np.zeros(n)
+        self.motors_on = np.ones(n, dtype=bool)
+        self.nfz_violations = np.zeros(n, dtype=np.int64)
+        self.max_track_error = np.zeros(n)
+        self._bad0 = np.zeros(n, dtype=np.int64)
+        self._bad = np.zeros(n, dtype=np.int64)
+        self.no_fly = np.asarray(grid_map.nfz, dtype=bool).reshape(-1)
+        self.threads = max(1, int(threads))
+        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    # ------------------------------------------------------------------ episode state
+    def reset(self, i: int, row: int, col: int, capacity: float, rng: np.random.Generator):
+        """Drone ``i`` hovers level at cruise altitude over (row, col): :meth:`Flight.reset`."""
+        m, d, one = self.model, self.datas[i], self.one
+        mujoco.mj_resetData(m, d)
+        jq = self.cols[0].start - 1
+        x, y = one.geo.cell_center(row, col)
+        d.qpos[jq : jq + 3] = (x, y, one.cruise_z)
+        d.qpos[jq + 3 : jq + 7] = (1, 0, 0, 0)
+        hover = one.controller.hover_thrust()
+        d.ctrl[:] = hover
+        d.act[:] = hover
+        mujoco.mj_forward(m, d)
+        self.controller.reset(i)
+        self.wind.reset(i, rng)
+        self.capacity[i] = capacity
+        self.battery.reset(i, capacity)
+        self.energy_used[i] = 0.0
+        self.motors_on[i] = True
+        self.nfz_violations[i] = 0
+        self.max_track_error[i] = 0.0
+        self.camera.reset(i)
+        self.coverage[i] = False
+        self._bad0[i] = self._bad[i] = d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+        mujoco.mj_getState(m, d, self.state[i], _STATE)
+
+    def position(self, i: int) -> np.ndarray:
+        return self.state[i, self.cols[0]][:3].copy()
+
+    # ------------------------------------------------------------------ physics
+    def _step_some(self, drones: list[int], nstep: int) -> None:
+        m, datas, state, inputs = self.model, self.datas, self.state, self.inputs
+        bad, warn = self._bad, mujoco.mjtWarning.mjWARN_BADQACC
+        set_state, get_state, step = mujoco.mj_setState, mujoco.mj_getState, mujoco.mj_step
+        for i in drones:
+            d = datas[i]
+            set_state(m, d, inputs[i], _INPUT)
+            step(m, d, nstep)
+            get_state(m, d, state[i], _STATE)
+            bad[i] = d.warning[warn].number
+
+    def _step(self, drones: np.ndarray, nstep: int) -> None:
+        """``nstep`` physics steps of ``drones`` with their :attr:`inputs` (ctrl, body force)."""
+        order = drones.tolist()
+        if self._pool is None or len(order) < 2 * self.threads:
+            self._step_some(order, nstep)
+            return
+        chunks = [order[j :: self.threads] for j in range(self.threads)]
+        for future in [self._pool.submit(self._step_some, c, nstep) for c in chunks]:
+            future.result()
+
+    def _settle(self, i: int, seconds: float = 0.3) -> None:
+        """:meth:`Flight._settle`: motors off after touchdown, the airframe comes to rest."""
+        self.motors_on[i] = False
+        self.battery.current[i] = 0.0
+        self.inputs[i] = 0.0
+        self._step(np.array([i]), max(1, round(seconds / self.config.timestep)))
+
+    # ------------------------------------------------------------------ macro-steps
+    def fly(self, kinds: np.ndarray, cells: np.ndarray, active: np.ndarray) -> dict:
+        """Fly one macro-action per ``active`` drone (``kinds``: MOVE to / HOVER over / LAND on
+        ``cells``); the result fields of :class:`~cpp_mujoco.physics.flight.ActionResult` as
+        (n,) arrays (zero for drones not active)."""
+        n, c, one = self.n, self.config, self.one
+        res = {
+            "duration": np.zeros(n), "energy": np.zeros(n),
+            "newly_seen": np.zeros(n, dtype=np.int64), "arrived": np.zeros(n, dtype=bool),
+            "landed": np.zeros(n, dtype=bool), "tracking_error": np.zeros(n),
+            "failure": np.full(n, None, dtype=object),
+        }  # fmt: skip
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            return res
+        e0, t0 = self.energy_used.copy(), self.state[:, 0].copy()
+        res["newly_seen"][idx] += self.camera.capture(idx)
+        kind = kinds[idx]
+        rows, cols = np.divmod(cells[idx], one.geo.width)
+        x, y = one.geo.cell_center(rows, cols)
+        landing = kind == LAND
+        z = np.where(landing, one.touch_z + 0.3, one.cruise_z)
+        pos = self.state[idx, self.cols[0]][:, :3]
+        self.refs.set(
+            idx, pos, np.stack([x, y, z], 1), np.where(landing, c.land_duration, c.move_duration),
+            landing,
+        )  # fmt: skip
+        goal = np.zeros((n, 3))
+        goal[idx] = np.stack([x, y, np.where(landing, one.touch_z, one.cruise_z)], 1)
+        nominal = np.zeros(n)
+        nominal[idx] = np.where(landing, c.land_duration, c.move_duration)
+        limit = np.zeros(n)
+        limit[idx] = np.select(
+            [kind == MOVE, kind == HOVER], [c.move_time_limit, c.move_duration], c.land_time_limit
+        )
+        arrive = np.zeros(n, dtype=bool)
+        arrive[idx] = kind == MOVE
+        land = np.zeros(n, dtype=bool)
+        land[idx] = landing
+        begun_landing = land.copy()  # a landing begun with budget left finishes on the reserve
+        emergency = np.full(n, None, dtype=object)
+        t = np.zeros(n)
+        worst2 = self.max_track_error**2
+        flying = active.copy()
+        self._loop(res, flying, t, t0, goal, nominal, limit, arrive, land, begun_landing,
+                   emergency, worst2)  # fmt: skip
+        self.max_track_error[idx] = np.sqrt(worst2[idx])
+        res["newly_seen"][idx] += self.camera.capture(idx)
+        res["duration"][idx] = self.state[idx, 0] - t0[idx]
+        res["energy"][idx] = self.energy_used[idx] - e0[idx]
+        p = self.state[idx, self.cols[0]][:, :3]
+        res["tracking_error"][idx] = np.sqrt(((p - goal[idx]) ** 2).sum(1))
+        return res
+
+    def _loop(self, res, flying, t, t0, goal, nominal, limit, arrive, land, begun_landing,
+              emergency, worst2) -> None:  # fmt: skip
+        """The tick loop of :meth:`Flight._fly` over the drones still flying."""
+        c, one, k, dt = self.config, self.one, self.k, self.dt
+        qcols, vcols, acols = self.cols
+        bx, by, bz = one.bounds
+        geo = one.geo
+        inv = 1.0 / geo.cell_size
+        pos_tol2, vel_tol2 = c.arrive_pos_tol**2, c.arrive_vel_tol**2
+        max_err2 = c.max_tracking_error**2
+        while flying.any():
+            i = np.flatnonzero(flying)
+            st = self.state[i]
+            qp, qv, act = st[:, qcols], st[:, vcols], st[:, acols]
+            pos, vel = qp[:, :3], qv[:, :3]
+            R = quat_to_mat(qp[:, 3:])
+            on = self.motors_on[i]
+            # ---- failure checks on the current state
+            failure = np.full(i.size, None, dtype=object)
+            out = (np.abs(pos[:, 0]) > bx) | (np.abs(pos[:, 1]) > by) | (pos[:, 2] > bz)
+            failure[out] = "left the arena"
+            failure[(failure == None) & (R[:, 8] < one.cos_flip) & on] = "flipped over"  # noqa: E711
+            broken = ~np.isfinite(qp.sum(1)) | (self._bad[i] != self._bad0[i])
+            failure[broken] = "numerical divergence (NaN or unstable acceleration)"
+            with np.errstate(invalid="ignore"):
+                row = np.floor(geo.height / 2 - pos[:, 1] * inv)
+                col = np.floor(pos[:, 0] * inv + geo.width / 2)
+            inside = (row >= 0) & (row < geo.height) & (col >= 0) & (col < geo.width)
+            cell = np.where(inside, row * geo.width + col, 0).astype(np.int64)
+            self.nfz_violations[i] += k * (~inside | self.no_fly[cell])
+            p_ref, v_ref, a_ref = self.refs(i, t[i])
+            e = pos - p_ref
+            track = (failure == None) & on  # noqa: E711
+            off2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1]
+            worst2[i] = np.where(track & (off2 > worst2[i]), off2, worst2[i])
+            failure[track & (off2 + e[:, 2] * e[:, 2] > max_err2)] = "diverged from the reference"
+            ended = failure != None  # noqa: E711
+            for j in np.flatnonzero(ended).tolist():
+                res["failure"][i[j]] = failure[j]
+            # ---- camera frames due, then: is the action done?
+            due = ~ended & (t0[i] + t[i] >= self.camera.next_frame[i])
+            if due.any():
+                res["newly_seen"][i[due]] += self.camera.capture(i[due])
+            ti = t[i]
+            for j in np.flatnonzero(~ended & (~on | land[i])).tolist():
+                d = int(i[j])
+                touch = ground_contact(self.datas[d], one.gear_geoms, one.quad_geoms,
+                                       one.ground_id)  # fmt: skip
+                if not on[j]:
+                    if touch is not None or ti[j] >= c.fall_time_limit:
+                        res["failure"][d] = self.battery.failure[d]
+                        ended[j] = True
+                elif touch is not None:
+                    if not touch:
+                        res["failure"][d] = "hit the ground with the airframe, not the landing gear"
+                    elif emergency[d] is not None:
+                        res["failure"][d] = emergency[d]
+                        self._settle(d)
+                    else:
+                        res["landed"][d] = res["arrived"][d] = True
+                        self._settle(d)
+                    ended[j] = True
+                elif ti[j] >= limit[d]:
+                    res["failure"][d] = "no touchdown within the landing time limit"
+                    ended[j] = True
+            cruise = ~ended & on & ~land[i] & (ti >= nominal[i])
+            if cruise.any():
+                g = pos - goal[i]
+                near = (g * g).sum(1) < pos_tol2
+                slow = (vel * vel).sum(1) < vel_tol2
+                got = cruise & arrive[i] & near & slow
+                res["arrived"][i[got]] = True
+                ended |= got | (cruise & (ti >= limit[i] - 1e-9))
+            flying[i[ended]] = False
+            keep = ~ended
+            if not keep.any():
+                break
+            self._control(i[keep], pos[keep], vel[keep], R[keep], qv[keep, 3:], act[keep],
+                          p_ref[keep], v_ref[keep], a_ref[keep], t, limit, land, begun_landing,
+                          emergency, goal)  # fmt: skip
+            self._step(i[keep], k)
+            t[i[keep]] += dt
+
+    def _control(self, i, pos, vel, R, omega, act, p_ref, v_ref, a_ref, t, limit, land,
+                 begun_landing, emergency, goal) -> None:  # fmt: skip
+        """Wind, control, energy, battery and drag of one tick: the drones' :attr:`inputs`."""
+        c, dt = self.config, self.dt
+        w = self.wind.velocity(i, pos, dt)  # every tick: the gusts advance for every drone
+        f = np.zeros((i.size, 4))
+        on = self.motors_on[i]
+        if on.any():
+            j = i[on]
+            self.controller.observe(j, vel[on], R[on], act[on], dt)
+            f_on = self.controller(j, pos[on], vel[on], R[on], omega[on], p_ref[on],
+                                   v_ref[on], a_ref[on], dt)  # fmt: skip
+            air = air_in_body(vel[on], w[on], R[on]) if self.energy_of.ff is not None else None
+            drawn = self.battery.draw(j, self.energy_of(act[on], f_on, air) / dt, dt)
+            cut = np.isnan(drawn)
+            if cut.any():  # the pack cannot carry the load: the motors stop, a fall begins
+                self.motors_on[j[cut]] = False
+                self.battery.current[j[cut]] = 0.0
+                f_on[cut] = 0.0
+                t[j[cut]] = 0.0  # the fall gets its own time limit
+            self.energy_used[j[~cut]] += drawn[~cut]
+            f[on] = f_on
+            fail = (
+                ~cut & ~begun_landing[j] & (emergency[j] == None)  # noqa: E711
+                & (self.battery.below_cutoff[j] | (self.energy_used[j] >= self.capacity[j]))
+            )  # fmt: skip
+            if fail.any():  # the battery failsafe: land where it is, on the reserve
+                d = j[fail]
+                p = pos[on][fail]
+                emergency[d] = np.where(self.battery.below_cutoff[d], CUTOFF, EMERGENCY_LANDING)
+                land[d] = True
+                t[d] = 0.0
+                limit[d] = c.land_time_limit
+                one = self.one
+                end = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z + 0.3)], 1)
+                self.refs.set(d, p, end, np.full(len(d), c.land_duration), True)
+                goal[d] = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z)], 1)
+        self.inputs[i, self.ctrl_cols] = f
+        self.inputs[i, self.force_cols] = drag_force(self.one.drag.half_rho_cda, vel, w)
