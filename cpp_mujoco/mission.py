@@ -211,16 +211,18 @@ def _log_grid_pose(recorder, grid_map, position, cell_size, altitude, time_s, fo
 def _attach_flight_review(env, recorder, video, onboard_video, image_every, cameras, writers):
     """Hook the recorder and the cameras into the flight's camera frames."""
     from cpp_mujoco.review.rendering import OffscreenCamera, VideoWriter, chase_camera
+    from cpp_mujoco.review.scenery import Scenery
 
     flight, data, model = env.flight, env.data, env.model
     fps = env.config.camera_rate
+    scenery = Scenery(env.grid_map, env.config)  # the map's tiles: not in the physics model
     onboard = None
     if onboard_video or recorder is not None:
-        onboard = OffscreenCamera(model, camera="quadrotor/downward")
+        onboard = OffscreenCamera(model, camera="quadrotor/downward", decorate=scenery)
         cameras.append(onboard)
     chase = None
     if video:
-        chase = chase_camera(model)
+        chase = chase_camera(model, scenery=scenery)
         cameras.append(chase)
         writers.append(("video", VideoWriter(video, fps=fps)))
     onboard_writer = None

@@ -13,8 +13,10 @@ from cpp_mujoco.physics.arena import GridGeometry, build_arena, camera_fovy, com
 from cpp_mujoco.physics.camera import cells_in_footprint, corner_rays, footprint, inside_polygon
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.energy import IntervalEnergy, PowerModel
-from cpp_mujoco.physics.quadrotor import QuadrotorParams
+from cpp_mujoco.physics.flight import Flight
+from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
 from cpp_mujoco.physics.wind import QuadraticDrag, Wind
+from cpp_mujoco.review.scenery import Scenery
 
 CONFIG = PhysicsConfig()
 
@@ -46,10 +48,75 @@ def test_arena_compiles_through_dm_control():
     physics = mjcf.Physics.from_mjcf_model(arena)
     physics.step()
     names = [physics.model.id2name(i, "geom") for i in range(physics.model.ngeom)]
-    assert {"tile_0_0", "nfz_0_2", "nfz_1_2", "quadrotor/skid_l"} <= set(names)
-    nfz = physics.model.name2id("nfz_0_2", "geom")
-    assert physics.model.geom_contype[nfz] == 0 and physics.model.geom_conaffinity[nfz] == 0
-    assert physics.model.geom_rgba[nfz][3] < 0.5  # translucent
+    assert {"ground", "quadrotor/skid_l", "quadrotor/skid_r"} <= set(names)
+
+
+def test_the_model_holds_only_the_ground_and_the_quadrotor(model):
+    """Tiles and no-fly volumes are render-time scenery (review/scenery.py), not model geoms:
+    as geoms they cost ~40 % of every mj_step."""
+    quad = mujoco.MjModel.from_xml_path(str(quadrotor_xml()))
+    quad_geoms = ["quadrotor/" + quad.geom(i).name for i in range(quad.ngeom)]
+    names = [model.geom(i).name for i in range(model.ngeom)]
+    assert names == ["ground", *quad_geoms] and model.ngeom == 1 + quad.ngeom == 15
+    world = np.flatnonzero(model.geom_bodyid == 0)
+    assert [model.geom(g).name for g in world] == ["ground"]
+    assert model.nbody == 1 + quad.nbody  # the world, the quadrotor's bodies
+    assert not any(n.startswith(("tile_", "nfz_")) for n in names)
+
+
+# MuJoCo-v0 on map A, seed 0, gusts on: energy after each action and the final state, flown on
+# the model that still held the 256 tiles and 19 no-fly volumes as geoms (they never collided, so
+# moving them out of the model must change no bit). A deliberate change of the flight updates them.
+REFERENCE_ACTIONS = (1, 1, 0, 3, 2, 2, 4)
+REFERENCE_ENERGY_J = (462.01486445376196, 952.3209097349289, 1436.2058404537913,
+                      1879.3440830196923, 2355.965346039427, 2819.4793909855925,
+                      3116.098193746369)  # fmt: skip
+REFERENCE_QPOS = (-9.948686936395237, -25.99504905883905, 0.17763390216535427,
+                  0.9999985520172926, 0.001541949001185389, -1.2329520024440247e-06,
+                  -0.0007199688015478496)  # fmt: skip
+REFERENCE_TIME_S = 21.040000000000365
+
+
+def test_a_flown_episode_is_bit_identical_to_the_tiled_model():
+    from cpp_mujoco.physics.env import MuJoCoEnv
+
+    env = MuJoCoEnv(map="A", wind_speed=5.0, wind_direction=60.0, gust_std=1.5)
+    env.reset(seed=0, options={"budget": 30})
+    energy = []
+    for action in REFERENCE_ACTIONS:
+        *_, terminated, _, info = env.step(action)
+        energy.append(info["energy_used_j"])
+    assert terminated and info["landed"]
+    assert tuple(energy) == REFERENCE_ENERGY_J
+    assert tuple(env.data.qpos.tolist()) == REFERENCE_QPOS
+    assert env.data.time == REFERENCE_TIME_S
+
+
+def test_tiles_as_model_geoms_would_not_change_the_flight():
+    """The same flight on the model plus the scenery as non-colliding geoms (what the arena was):
+    identical to the last bit, whatever the flight code becomes."""
+    grid_map = GridMap.from_ascii(["TTN", "TLT", "YTT"])
+    config = PhysicsConfig(wind_speed=4.0, gust_std=1.0)
+    scenery = Scenery(grid_map, config)
+    arena = build_arena(grid_map, config)
+    (tiles, tile_size, colours), (volumes, volume_size, volume_rgba) = (
+        scenery.tiles(), scenery.volumes()
+    )  # fmt: skip
+    boxes = [(p, tile_size, c) for p, c in zip(tiles, colours, strict=True)]
+    for pos, size, rgba in boxes + [(p, volume_size, volume_rgba) for p in volumes]:
+        arena.worldbody.add(
+            "geom", type="box", size=size, pos=pos, rgba=rgba, contype=0, conaffinity=0
+        )
+    tiled = compile_arena(arena)
+    assert tiled.ngeom == 15 + 9 + 2
+    runs = []
+    for model in (compile_arena(build_arena(grid_map, config)), tiled):
+        flight = Flight(model, grid_map, config)
+        flight.reset(1, 1, rng=np.random.default_rng(5))
+        results = [flight.move(5), flight.hover(5), flight.move(4), flight.land(4)]
+        assert results[-1].landed
+        runs.append([(r.energy, r.duration) for r in results] + [flight.data.qpos.tolist()])
+    assert runs[0] == runs[1]
 
 
 def test_realistic_airframe(params):

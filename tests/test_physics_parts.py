@@ -18,6 +18,7 @@ from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.physics.parts import Controller, WindModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
 from cpp_mujoco.physics.wind import Wind
+from cpp_mujoco.review.scenery import Scenery
 
 OPEN = GridMap.from_ascii(["TTT", "TLT", "TTT"], name="open3")
 GUSTY = PhysicsConfig(wind_speed=5.0, wind_direction=60.0, gust_std=1.5)
@@ -139,12 +140,13 @@ def test_arena_flight_and_camera_agree_with_the_one_geometry():
     geo = GridGeometry.of(grid_map, config.cell_size)
     model = compile_arena(build_arena(grid_map, config))
     flight = Flight(model, grid_map, config)
+    tiles = Scenery.from_model(model).tiles()[0]  # the drawn map, as the model stores it
     centers = geo.centers()
     for cell, (x, y) in enumerate(centers):
         row, col = divmod(cell, geo.width)
         assert geo.cell_center(row, col) == (x, y)
         assert geo.cell_of(x, y) == (row, col) and geo.cell_index(x, y) == cell
-        assert tuple(model.geom(f"tile_{row}_{col}").pos[:2]) == (x, y)
+        assert tuple(tiles[cell, :2]) == (x, y)
         assert flight.waypoint(cell)[:2] == (x, y)
     assert geo.cell_index(-7.6, 0.0) is None and geo.cell_index(0.0, 4.6) is None
     rng = np.random.default_rng(0)

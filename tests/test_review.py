@@ -122,11 +122,12 @@ from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.review.rendering import OffscreenCamera
+from cpp_mujoco.review.scenery import Scenery
 import mujoco
 model = compile_arena(build_arena(load_map("B"), PhysicsConfig()))
 data = mujoco.MjData(model)
 mujoco.mj_forward(model, data)
-cam = OffscreenCamera(model, camera="quadrotor/downward")
+cam = OffscreenCamera(model, camera="quadrotor/downward", decorate=Scenery.from_model(model))
 data.qpos[:3] = (0.0, 0.0, 6.0)
 mujoco.mj_forward(model, data)
 frame = cam.render(data)

@@ -19,10 +19,14 @@ def benchmark_review(map_name: str = "B", budget: int = 40, frames: int = 200) -
     from cpp_mujoco.mission import fly_mission
     from cpp_mujoco.planners import SafeGreedyPlanner
     from cpp_mujoco.review.rendering import OffscreenCamera
+    from cpp_mujoco.review.scenery import Scenery
 
     env = gym.make("cpp_mujoco/MuJoCo-v0", map=map_name).unwrapped
     env.reset(seed=0)
-    camera = OffscreenCamera(env.model, camera="quadrotor/downward", width=320, height=240)
+    scenery = Scenery(env.grid_map, env.config)  # as a mission's onboard camera draws the map
+    camera = OffscreenCamera(
+        env.model, camera="quadrotor/downward", width=320, height=240, decorate=scenery
+    )
     camera.render(env.data)
     start = time.perf_counter()
     for i in range(frames):

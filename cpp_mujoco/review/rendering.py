@@ -18,7 +18,9 @@ import importlib
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -131,8 +133,17 @@ def configure_gl(backend: str | None = None) -> str:
     )
 
 
+DEFAULT_MAX_GEOM = 10_000  # mujoco.Renderer's own default scene size
+
+
 class OffscreenCamera:
-    """Renders one camera of a model: a named MJCF camera, or a chase camera tracking a body."""
+    """Renders one camera of a model: a named MJCF camera, or a chase camera tracking a body.
+
+    ``decorate`` is called with the ``MjvScene`` after each ``update_scene`` and before the
+    render, to add what the model does not hold — the map's tiles and no-fly volumes
+    (:class:`~cpp_mujoco.review.scenery.Scenery`). Its ``geom_count``, if it has one, is added to
+    the scene's room for geoms.
+    """
 
     def __init__(
         self,
@@ -146,12 +157,14 @@ class OffscreenCamera:
         distance: float = 12.0,
         elevation: float = -30.0,
         azimuth: float = 135.0,
+        decorate: Callable[[Any], None] | None = None,
     ):
         import mujoco
 
         select_gl()  # the first render chooses the GL backend (see the module docstring)
+        max_geom = DEFAULT_MAX_GEOM + int(getattr(decorate, "geom_count", 0))
         try:
-            self.renderer = mujoco.Renderer(model, height, width)
+            self.renderer = mujoco.Renderer(model, height, width, max_geom=max_geom)
         except Exception as e:  # the GL libraries report failures in many shapes
             raise RenderingError(
                 f"cannot create an offscreen {width}x{height} context with "
@@ -170,12 +183,15 @@ class OffscreenCamera:
             cam.distance, cam.elevation, cam.azimuth = distance, elevation, azimuth
             self.camera = cam
         self._flags = (shadows, reflections)
+        self.decorate = decorate
 
     def render(self, data) -> np.ndarray:
         """(H, W, 3) uint8 frame of the current state."""
         import mujoco
 
         self.renderer.update_scene(data, camera=self.camera, scene_option=self.scene_option)
+        if self.decorate is not None:
+            self.decorate(self.renderer.scene)
         flags = self.renderer.scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW], flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (
             self._flags
@@ -192,12 +208,20 @@ class OffscreenCamera:
 CHASE_VIEW = {"distance": 16.0, "elevation": -45.0}  # behind and above, the whole 3×3 view
 
 
-def chase_camera(model, width: int = 480, height: int = 360) -> OffscreenCamera:
+def chase_camera(
+    model, width: int = 480, height: int = 360, scenery: Callable[[Any], None] | None = None
+) -> OffscreenCamera:
     """The chase camera following the quadrotor (``MuJoCo-v0``'s ``render()``); GL backend as
-    :func:`select_gl` chooses, :class:`RenderingError` if it cannot render."""
+    :func:`select_gl` chooses, :class:`RenderingError` if it cannot render. ``scenery`` draws the
+    map; None: the map stored in an arena model (:meth:`Scenery.from_model`), if any."""
+    if scenery is None:
+        from cpp_mujoco.review.scenery import Scenery
+
+        scenery = Scenery.from_model(model)
     return OffscreenCamera(
-        model, track_body="quadrotor/core", width=width, height=height, **CHASE_VIEW
-    )
+        model, track_body="quadrotor/core", width=width, height=height, decorate=scenery,
+        **CHASE_VIEW,
+    )  # fmt: skip
 
 
 class _Abandoned(BaseException):

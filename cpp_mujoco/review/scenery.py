@@ -1,0 +1,183 @@
+"""The map's ground tiles and no-fly volumes, drawn into a rendered scene instead of simulated.
+
+Why not in the physics model: as model geoms (291 of them on a 16×16 map) they cost ~40 % of
+every ``mj_step`` — kinematics and the broad-phase run over every geom — although only the ground
+plane ever collides. So the model keeps the ground, the camera, the light and the quadrotor, and
+:class:`Scenery` appends the tiles and volumes to a :class:`mujoco.MjvScene` after
+``update_scene``, once per frame, with the colours and places they had as model geoms.
+``decorate(scene, seen)`` draws the cells the camera has seen lighter (the paper's convention).
+
+The arena stores the map in the model (a ``<custom><numeric>`` field, which the physics never
+reads), so :meth:`Scenery.from_model` redraws it from a compiled model alone. Light on purpose: no
+GL, and MuJoCo only when a scene is decorated.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cpp_mujoco.physics.arena import SCENERY_NUMERIC
+from cpp_mujoco.physics.geometry import GridGeometry
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from cpp_mujoco.maps import GridMap
+    from cpp_mujoco.physics.config import PhysicsConfig
+
+__all__ = [
+    "NFZ_VOLUME_RGBA", "TILE_GAP", "ZONE_RGBA", "Scenery", "SceneryError",
+    "zone_of",
+]  # fmt: skip
+
+# the paper's colours; a landing cell that is also a target shows as landing (blue-green)
+ZONE_RGBA = {
+    "empty": (0.80, 0.80, 0.78, 1.0),
+    "landing": (0.20, 0.35, 0.90, 1.0),
+    "target": (0.25, 0.75, 0.30, 1.0),
+    "landing_target": (0.15, 0.60, 0.75, 1.0),
+    "nfz": (0.85, 0.20, 0.20, 1.0),
+    "target_nfz": (0.95, 0.85, 0.20, 1.0),
+}
+NFZ_VOLUME_RGBA = (1.0, 0.1, 0.1, 0.18)
+TILE_GAP = 0.03  # m between tiles, so the grid is visible from above
+TILE_HALF_HEIGHT = 0.005  # m; a tile is a thin box lying on the ground plane
+SEEN_LIGHTEN = 0.55  # a seen cell's colour moves this far towards white (as grid_image does)
+_ZONES = tuple(ZONE_RGBA)
+
+
+class SceneryError(RuntimeError):
+    """The scene has no room for the scenery, or a model carries no map to draw."""
+
+
+def zone_of(grid_map: GridMap, row: int, col: int) -> str:
+    """The zone name (a :data:`ZONE_RGBA` key) of one cell."""
+    return _ZONES[int(_zone_index(*(layer[row, col] for layer in grid_map.layers)))]
+
+
+def _zone_index(landing, target, nfz):
+    """Index into ``_ZONES`` of each cell; the arguments are booleans or boolean arrays."""
+    landing, target, nfz = (np.asarray(a, dtype=bool) for a in (landing, target, nfz))
+    lone = np.where(target, _ZONES.index("target"), _ZONES.index("empty"))
+    lands = np.where(target, _ZONES.index("landing_target"), _ZONES.index("landing"))
+    nofly = np.where(target, _ZONES.index("target_nfz"), _ZONES.index("nfz"))
+    return np.where(nfz, nofly, np.where(landing, lands, lone))
+
+
+class Scenery:
+    """Ground tiles (every cell, its zone's colour) and translucent no-fly volumes of one map.
+
+    ``config`` is the :class:`PhysicsConfig` (cell size, and no-fly volumes twice the cruise
+    altitude high) or a :class:`GridGeometry` (then ``volume_height`` defaults to the default
+    config's). Everything is precomputed here; :meth:`decorate` only copies it into the scene.
+    """
+
+    def __init__(
+        self,
+        grid_map: GridMap,
+        config: PhysicsConfig | GridGeometry,
+        volume_height: float | None = None,
+    ):
+        if isinstance(config, GridGeometry):
+            geometry = config
+            if volume_height is None:
+                from cpp_mujoco.physics.config import PhysicsConfig
+
+                volume_height = 2 * PhysicsConfig().altitude
+        else:
+            geometry = GridGeometry.of(grid_map, config.cell_size)
+            volume_height = 2 * config.altitude if volume_height is None else volume_height
+        if geometry.height != grid_map.shape[0] or geometry.width != grid_map.shape[1]:
+            raise ValueError(f"geometry {geometry} does not fit a {grid_map.shape} map")
+        self._build(grid_map.landing, grid_map.target, grid_map.nfz, geometry, volume_height)
+
+    @classmethod
+    def from_model(cls, model: mujoco.MjModel) -> Scenery | None:
+        """The scenery of the map an arena model was built from; None for a model without one."""
+        try:
+            values = np.asarray(model.numeric(SCENERY_NUMERIC).data, dtype=float)
+        except KeyError:
+            return None
+        h, w = int(values[0]), int(values[1])
+        codes = values[4:].astype(int).reshape(h, w)
+        self = cls.__new__(cls)
+        layers = (codes & 1 > 0, codes & 2 > 0, codes & 4 > 0)
+        self._build(*layers, GridGeometry(h, w, float(values[2])), float(values[3]))
+        return self
+
+    def _build(self, landing, target, nfz, geometry: GridGeometry, volume_height: float) -> None:
+        import mujoco
+
+        self.geometry = geometry
+        self.volume_height = volume_height
+        xy = geometry.centers()
+        n = len(xy)
+        rgba = np.array(list(ZONE_RGBA.values()), dtype=np.float32)
+        self._tile_rgba = rgba[_zone_index(landing, target, nfz).ravel()]
+        self._seen_rgba = self._tile_rgba.copy()
+        self._seen_rgba[:, :3] += SEEN_LIGHTEN * (1.0 - self._seen_rgba[:, :3])
+        half = geometry.cell_size / 2
+        self._tile_pos = np.column_stack([xy, np.full(n, TILE_HALF_HEIGHT)])
+        self._tile_size = np.array([half - TILE_GAP / 2, half - TILE_GAP / 2, TILE_HALF_HEIGHT])
+        cells = np.flatnonzero(np.asarray(nfz, dtype=bool).ravel())
+        self._volume_pos = np.column_stack([xy[cells], np.full(len(cells), volume_height / 2)])
+        self._volume_size = np.array([half, half, volume_height / 2])
+        self._volume_rgba = np.array(NFZ_VOLUME_RGBA, dtype=np.float32)
+        self._mat = np.eye(3).ravel()
+        self._box = int(mujoco.mjtGeom.mjGEOM_BOX)
+        self._static = int(mujoco.mjtCatBit.mjCAT_STATIC)
+        self._unknown = int(mujoco.mjtObj.mjOBJ_UNKNOWN)
+        # per-geom rows as separate arrays: slicing a (N, 3) array per geom per frame costs more
+        self._tile_rows = list(self._tile_pos)
+        self._volume_rows = list(self._volume_pos)
+
+    @property
+    def geom_count(self) -> int:
+        """Geoms one :meth:`decorate` adds (a renderer's scene needs room for them)."""
+        return len(self._tile_rows) + len(self._volume_rows)
+
+    def tiles(self, seen: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(N, 3) centres, (3,) half sizes and (N, 4) colours of the tiles, flat cell order."""
+        return self._tile_pos, self._tile_size, self._colours(seen)
+
+    def volumes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(M, 3) centres, (3,) half sizes and (4,) colour of the no-fly volumes."""
+        return self._volume_pos, self._volume_size, self._volume_rgba
+
+    def _colours(self, seen: np.ndarray | None) -> np.ndarray:
+        if seen is None:
+            return self._tile_rgba
+        mask = np.asarray(seen, dtype=bool).reshape(-1)
+        if mask.shape != (len(self._tile_rgba),):
+            raise ValueError(f"seen has {mask.size} cells, the map {len(self._tile_rgba)}")
+        return np.where(mask[:, None], self._seen_rgba, self._tile_rgba)
+
+    def decorate(self, scene: mujoco.MjvScene, seen: np.ndarray | None = None) -> None:
+        """Append the tiles (``seen`` cells, (H, W) or flat, lighter) and the no-fly volumes to
+        ``scene``; call after ``update_scene`` and before rendering. :class:`SceneryError` if
+        the scene has no room for them (``maxgeom``), rather than a map drawn in part."""
+        import mujoco
+
+        colours = list(self._colours(seen))
+        start = scene.ngeom
+        if start + self.geom_count > scene.maxgeom:
+            raise SceneryError(
+                f"the scene holds {scene.maxgeom} geoms, {start} used: no room for the map's "
+                f"{self.geom_count}; make the renderer with max_geom >= {start + self.geom_count}"
+            )
+        init, geoms, box, mat = mujoco.mjv_initGeom, scene.geoms, self._box, self._mat
+        items = [(p, self._tile_size, c) for p, c in zip(self._tile_rows, colours, strict=True)]
+        items += [(p, self._volume_size, self._volume_rgba) for p in self._volume_rows]
+        for i, (pos, size, rgba) in enumerate(items, start):
+            geom = geoms[i]
+            init(geom, box, size, pos, mat, rgba)
+            geom.category, geom.objtype, geom.objid, geom.segid = (
+                self._static, self._unknown, -1, i,
+            )  # fmt: skip
+        scene.ngeom = start + len(items)
+
+    def __call__(self, scene: mujoco.MjvScene) -> None:
+        """The scenery as :class:`~cpp_mujoco.review.rendering.OffscreenCamera`'s decorator."""
+        self.decorate(scene)
