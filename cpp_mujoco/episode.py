@@ -7,6 +7,8 @@ Two forms of the same loop, because there are two kinds of env:
   ``on_start``/``on_step`` (and its cameras through the flight's own ``on_frame``).
 * :func:`run_batch` — a batched :class:`GridMDP`, all its episodes at once: the grid protocol
   (``evaluate``), the planners' rollouts and the recorded demonstrations run it.
+* :func:`run_vector_episodes` — a gymnasium vector env (the batched ``MuJoCo-v0``), one episode
+  per env, seeded and started each as :func:`run_episode` would: the physics protocol's workers.
 
 Both start the policy's episodes first (:func:`~cpp_mujoco.policy.start_episodes`), so a stateful
 policy (a planner's plans) never carries a plan from one episode into the next.
@@ -96,3 +98,52 @@ def run_batch(
         outcome = mdp.step(actions, active=active)
         if on_step is not None:
             on_step(obs, actions, outcome, active)
+
+
+def run_vector_episodes(
+    venv, policy, *, seeds: list[int], options: dict[str, Any], batch_seed: int | None = None
+) -> list[EpisodeRecord]:
+    """One episode per env of ``venv`` (autoreset disabled), env i seeded ``seeds[i]`` with the
+    per-env reset ``options`` (``start`` (N, 2), ``budget`` (N,)): the records
+    :func:`run_episode` gives for the same seeds and options with a deterministic policy.
+    ``batch_seed`` names the batch for the policy's episode start."""
+    obs, info = venv.reset(seed=list(seeds), options=options)
+    n = venv.num_envs
+    start_episodes(policy, n, seed=batch_seed)
+    width = venv.grid_map.shape[1]
+    records = [
+        EpisodeRecord(s, (int(r), int(c)), int(b), cells=[int(r) * width + int(c)])
+        for s, (r, c), b in zip(seeds, info["position"], info["budget"], strict=True)
+    ]
+    done = np.zeros(n, dtype=bool)
+    while not done.all():
+        actions = np.asarray(policy.act(obs), dtype=np.int64).reshape(-1)
+        if actions.shape != (n,):  # never broadcast one action over the batch
+            raise ValueError(f"policy gave {actions.size} actions for {n} episodes")
+        actions = np.where(done, LAND, actions)  # the env ignores finished episodes
+        obs, reward, terminated, _, info = venv.step(actions)
+        cells = info["position"][:, 0] * width + info["position"][:, 1]
+        for i in np.flatnonzero(~done).tolist():
+            record = records[i]
+            record.actions.append(int(actions[i]))
+            record.cells.append(int(cells[i]))
+            record.total_reward += float(reward[i])
+            if terminated[i]:
+                record.info = _info_of(info, i)
+        done |= terminated
+    return records
+
+
+def _info_of(info: dict[str, np.ndarray], i: int) -> dict[str, Any]:
+    """Env ``i``'s entry of a vector env's info, as the single env's info (Python scalars)."""
+    out: dict[str, Any] = {}
+    for key, values in info.items():
+        if key.startswith("_"):
+            continue
+        value = values[i]
+        out[key] = (
+            tuple(int(v) for v in value)
+            if key == "position"
+            else (value.item() if isinstance(value, np.generic) else value)
+        )
+    return out
