@@ -120,12 +120,34 @@ def _wind(args) -> dict:
     return weather
 
 
+def _ray_runtime(args):
+    """The Ray runtime for ``--ray`` (started or connected once for every policy and map), or
+    nothing; a wrong combination or a missing Ray is bad input, named before anything runs."""
+    from contextlib import nullcontext
+
+    if args.ray_address and not args.ray:
+        raise ValueError("--ray-address needs --ray")
+    if not args.ray:
+        return nullcontext()
+    if args.backend != "mujoco":
+        raise ValueError("--ray needs --backend mujoco (the grid protocol runs in this process)")
+    from cpp_mujoco.physics.ray_engine import import_ray, ray_runtime
+
+    try:
+        import_ray()
+    except ImportError as exc:
+        raise ValueError(str(exc)) from exc
+    return ray_runtime(args.ray_address, args.workers)
+
+
 def cmd_evaluate(args) -> None:
+    from cpp_mujoco.evaluate import protocol_budgets
     from cpp_mujoco.maps import bundled_maps, load_map
     from cpp_mujoco.planners import make_planner
     from cpp_mujoco.review.results import run_evaluation
 
     weather = _wind(args)  # checked before anything is loaded or written
+    runtime = _ray_runtime(args)
     grid_maps = [load_map(spec) for spec in args.map or bundled_maps()]
     for spec in args.agent:
         _check_agent(spec)
@@ -138,9 +160,12 @@ def cmd_evaluate(args) -> None:
         policies += [(f"ddqn[{spec}]", load_agent(spec)) for spec in args.agent]
     out = out_dir(args.out)
     extra: dict = {"progress": progress_wanted(args)}
+    extra["budgets"] = protocol_budgets(step=args.budget_step)
     if args.backend == "mujoco":
         extra.update(workers=args.workers, env_kwargs=weather)
-    run_evaluation(grid_maps, policies, out, args.backend, **extra)
+        extra["engine"] = "ray" if args.ray else "local"
+    with runtime:
+        run_evaluation(grid_maps, policies, out, args.backend, **extra)
     print(f"\nresults and figures: {out}/")
 
 
@@ -280,7 +305,17 @@ def add_evaluate(sub) -> None:
         "--backend", default="grid", choices=["grid", "mujoco"],
         help="simulate on the grid or fly in MuJoCo (default: %(default)s)",
     )  # fmt: skip
+    p.add_argument(
+        "--budget-step", type=int_at_least(1), default=1,
+        help="every n-th budget of 25..75, 75 always included (default: %(default)s, all)",
+    )  # fmt: skip
     add_workers_option(p)
+    p.add_argument(
+        "--ray", action="store_true",
+        help="mujoco: fly the episodes as Ray tasks (pip install -e .[ray]); a local Ray runtime "
+        "of --workers CPUs unless --ray-address or RAY_ADDRESS names a cluster",
+    )  # fmt: skip
+    p.add_argument("--ray-address", help="with --ray: the Ray cluster to fly on (HOST:PORT)")
     add_wind_options(p)
     p.add_argument(
         "--out", default="out/evaluate", help="folder for JSON and figures (default: %(default)s)"

@@ -3,9 +3,9 @@
 On the grid, episodes run together in a batched :class:`GridMDP` — in chunks of at most
 ``chunk_cells`` episode-cells, so memory does not grow with episodes × map size; each chunk is one
 :func:`~cpp_mujoco.episode.run_batch` (an episode start for the policy). In MuJoCo the episodes
-are flown one by one (:mod:`cpp_mujoco.physics.protocol`). A full grid protocol for a 16×16 map
-is one chunk and takes about a second for a fast policy. Every result carries the map it ran on
-(``grid_map``) and the conditions that produced its numbers.
+are flown one by one, over this machine's cores or over Ray (:mod:`cpp_mujoco.physics.protocol`).
+A full grid protocol for a 16×16 map is one chunk and takes about a second for a fast policy.
+Every result carries the map it ran on (``grid_map``) and the conditions that produced its numbers.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from cpp_mujoco.episode import OnBatchStep, run_batch
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.physics.protocol import ENGINES  # what carries MuJoCo episodes
 from cpp_mujoco.policy import Policy, as_policy
 from cpp_mujoco.policy import policy_name as policy_label
 
@@ -32,6 +33,7 @@ CHUNK_CELLS = 2**23  # grid protocol: episodes per batch × cells per map stays 
 __all__ = [
     "BACKENDS",
     "CHUNK_CELLS",
+    "ENGINES",
     "PAPER_LANDING_RATIO",
     "EvaluationResult",
     "Policy",  # defined in cpp_mujoco.policy; importable here as before
@@ -185,14 +187,19 @@ def evaluate(
     env_kwargs: dict | None = None,
     on_step: OnBatchStep | None = None,
     chunk_cells: int = CHUNK_CELLS,
+    engine: str = "local",
+    ray_address: str | None = None,
 ) -> EvaluationResult:
     """Run the full protocol for ``policy`` on ``map``; budgets default to the config's range.
 
     ``policy``: anything with batched ``act`` (optionally ``reset``), an SB3 model (its
     ``predict``, through :class:`~cpp_mujoco.policy.SB3Policy`) or a plain callable.
     ``backend="mujoco"`` flies every episode in physics, over ``workers`` processes (default:
-    all cores). ``env_kwargs``: :class:`GridConfig` fields (either backend) and, for MuJoCo,
-    physics options (``wind_speed=6`` …); an option the backend does not know is an error.
+    all cores) — or, ``engine="ray"``, as Ray tasks on the cluster at ``ray_address`` (else
+    ``RAY_ADDRESS``, else a local runtime of ``workers`` CPUs); the numbers are the same on
+    either engine (:mod:`cpp_mujoco.physics.ray_engine`). ``env_kwargs``: :class:`GridConfig`
+    fields (either backend) and, for MuJoCo, physics options (``wind_speed=6`` …); an option
+    the backend does not know is an error.
     ``on_step(observation, actions, outcome, active)`` (grid only, one chunk) sees every batched
     step — the agent's demonstrations are recorded through it. ``progress``: a tqdm bar.
     """
@@ -202,6 +209,7 @@ def evaluate(
         raise ValueError("on_step is only available with backend='grid'")
     if chunk_cells < 1:
         raise ValueError(f"chunk_cells must be >= 1, got {chunk_cells}")
+    _check_engine(backend, engine, ray_address)
     policy = as_policy(policy)
     grid_map = load_map(map)
     config, physics_kwargs = _split_options(backend, config, env_kwargs)
@@ -216,7 +224,7 @@ def evaluate(
     if backend == "mujoco":
         outcome = _run_physics(
             policy, grid_map, starts, budget_per_episode, config, physics_kwargs, workers,
-            progress, conditions,
+            progress, conditions, engine, ray_address,
         )  # fmt: skip
     else:
         per_chunk = max(1, chunk_cells // grid_map.landing.size)
@@ -239,6 +247,16 @@ def evaluate(
         conditions=conditions,
         **outcome,
     )
+
+
+def _check_engine(backend: str, engine: str, ray_address: str | None) -> None:
+    """Ray carries MuJoCo episodes only: the grid protocol is one batch in this process."""
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; available: {', '.join(ENGINES)}")
+    if engine != "local" and backend != "mujoco":
+        raise ValueError(f"engine={engine!r} needs backend='mujoco' (the grid runs here)")
+    if ray_address is not None and engine != "ray":
+        raise ValueError("ray_address needs engine='ray'")
 
 
 def _split_options(
@@ -336,15 +354,18 @@ def _run_chunk(policy, grid_map, starts, budgets, config, chunk, on_step, bar) -
 
 
 def _run_physics(
-    policy, grid_map, starts, budgets, config, physics_kwargs, workers, progress, conditions
-) -> dict:
+    policy, grid_map, starts, budgets, config, physics_kwargs, workers, progress, conditions,
+    engine, ray_address,
+) -> dict:  # fmt: skip
     """Fly the protocol in MuJoCo; the env is built here first, so bad options fail at once."""
     from cpp_mujoco.physics.protocol import fly_episodes, make_env, records_to_arrays
 
     env_kwargs = {**physics_kwargs, "grid_config": config}
     env = make_env(grid_map, env_kwargs)
     conditions["physics_config"] = asdict(env.config)
-    records = fly_episodes(policy, grid_map, starts, budgets, workers, progress, env_kwargs, env)
+    records = fly_episodes(
+        policy, grid_map, starts, budgets, workers, progress, env_kwargs, env, engine, ray_address
+    )
     return records_to_arrays(records)
 
 

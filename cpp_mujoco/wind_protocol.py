@@ -11,6 +11,7 @@ result whose conditions say which episodes flew in which wind.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from contextlib import nullcontext
 from typing import Any
 
 import numpy as np
@@ -87,25 +88,36 @@ def evaluate_in_winds(
     workers: int | None = None,
     progress: bool = False,
     env_kwargs: dict | None = None,
+    engine: str = "local",
+    ray_address: str | None = None,
 ) -> EvaluationResult:
     """The protocol (``budgets``, default all) in MuJoCo with a ``wind_speed`` wind from the
     four compass directions, the budgets dealt round-robin to them (see the module docstring).
-    In calm air (speed 0) the direction means nothing: one run."""
+    In calm air (speed 0) the direction means nothing: one run. ``engine``, ``ray_address``:
+    as :func:`~cpp_mujoco.evaluate.evaluate`; Ray is started (or connected) once for the four."""
     budgets = sorted(budgets if budgets is not None else protocol_budgets())
     weather = {**(env_kwargs or {}), "wind_speed": wind_speed, "turbulence": turbulence}
     directions = COMPASS if wind_speed > 0 else (0.0,)
-    parts = [
-        evaluate(
-            policy,
-            grid_map,
-            backend="mujoco",
-            budgets=budgets[k :: len(directions)],
-            policy_name=policy_name,
-            workers=workers,
-            progress=progress,
-            env_kwargs={**weather, "wind_direction": direction},
-        )  # fmt: skip
-        for k, direction in enumerate(directions)
-        if budgets[k :: len(directions)]
-    ]
+    runtime = nullcontext()
+    if engine == "ray":
+        from cpp_mujoco.physics.ray_engine import ray_runtime
+
+        runtime = ray_runtime(ray_address, workers)
+    with runtime:
+        parts = [
+            evaluate(
+                policy,
+                grid_map,
+                backend="mujoco",
+                budgets=budgets[k :: len(directions)],
+                policy_name=policy_name,
+                workers=workers,
+                progress=progress,
+                env_kwargs={**weather, "wind_direction": direction},
+                engine=engine,
+                ray_address=ray_address,
+            )  # fmt: skip
+            for k, direction in enumerate(directions)
+            if budgets[k :: len(directions)]
+        ]
     return concatenate(parts)

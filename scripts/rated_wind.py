@@ -6,6 +6,7 @@ from N, E, S and W with the budgets dealt round-robin to the four (``cpp_mujoco.
     python scripts/rated_wind.py                    # the full protocol
     python scripts/rated_wind.py --budget-step 5    # quicker
     python scripts/rated_wind.py --guard            # also the paper agents and greedy + guard
+    python scripts/rated_wind.py --ray --ray-address HEAD:6379   # on a Ray cluster (README)
 Writes out/rated_wind/{rated_wind.md, rated_wind.json}; exits 1 if any no-fly violation.
 """
 
@@ -13,10 +14,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 
 from cpp_mujoco.evaluate import protocol_budgets
 from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.physics.ray_engine import import_ray, ray_runtime
 from cpp_mujoco.review.results import (
     RATED_COLUMNS,
     Table,
@@ -34,11 +37,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget-step", type=int, default=1, help="protocol budgets step")
     parser.add_argument("--policies", nargs="+", default=None, help="e.g. safe-greedy")
     parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
+    parser.add_argument("--ray", action="store_true", help="fly on Ray (pip install -e .[ray])")
+    parser.add_argument(
+        "--ray-address", help="Ray cluster to fly on (default: RAY_ADDRESS, else a local one)"
+    )
     parser.add_argument(
         "--guard", action="store_true", help="add '+ guard' runs (return_guard=True)"
     )
     parser.add_argument("--out", default="out/rated_wind", help="output folder")
     args = parser.parse_args(argv)
+    if args.ray_address and not args.ray:
+        parser.error("--ray-address needs --ray")
+    if args.ray:
+        try:
+            import_ray()
+        except ImportError as exc:
+            parser.error(str(exc))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     table = Table("the rated wind: 9 m/s from N/E/S/W + moderate turbulence", RATED_COLUMNS)
@@ -48,18 +62,20 @@ def main(argv: list[str] | None = None) -> int:
         variants = select_wind_variants(grid_maps, args.policies, args.guard)
     except ValueError as exc:
         parser.error(str(exc))
-    for grid_map in grid_maps:
-        for name, policy, guard in variants[grid_map.label]:
-            result = evaluate_in_winds(
-                policy, grid_map, RATED_WIND["wind_speed"], turbulence=RATED_WIND["turbulence"],
-                budgets=budgets, policy_name=name, workers=args.workers,
-                progress=sys.stderr.isatty(),
-                env_kwargs={"return_guard": True} if guard else None,
-            )  # fmt: skip
-            table.rows.append(rated_row(result))
-            print(table.render().splitlines()[-1], flush=True)
-            write_tables(out / "rated_wind.json", {"rated_wind": table})  # after every row
-            write_rendered(out / "rated_wind.md", {"rated_wind": table}, "markdown")
+    engine = "ray" if args.ray else "local"
+    with ray_runtime(args.ray_address, args.workers) if args.ray else nullcontext():  # once
+        for grid_map in grid_maps:
+            for name, policy, guard in variants[grid_map.label]:
+                result = evaluate_in_winds(
+                    policy, grid_map, RATED_WIND["wind_speed"], turbulence=RATED_WIND["turbulence"],
+                    budgets=budgets, policy_name=name, workers=args.workers, engine=engine,
+                    progress=sys.stderr.isatty(),
+                    env_kwargs={"return_guard": True} if guard else None,
+                )  # fmt: skip
+                table.rows.append(rated_row(result))
+                print(table.render().splitlines()[-1], flush=True)
+                write_tables(out / "rated_wind.json", {"rated_wind": table})  # after every row
+                write_rendered(out / "rated_wind.md", {"rated_wind": table}, "markdown")
     print(table.render())
     violations = sum(row["values"]["nfz_violations"] for row in table.rows)
     print(f"\nwritten: {out}/rated_wind.md, rated_wind.json; no-fly violations: {violations}")

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Sets up everything cpp_mujoco needs on a fresh Debian/Ubuntu machine; safe to run again.
 #   - system libraries for offscreen OpenGL (EGL and OSMesa), when run as root
-#   - a virtual environment in .venv with the package, its pinned dependencies and dev tools
+#   - a virtual environment in .venv with the package, its pinned dependencies, dev tools and Ray
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -24,5 +24,6 @@ PYTHON=${PYTHON:-python3}
 [ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
 # torch first, pinned: the CPU build; any other spec pulls gigabytes of CUDA packages
 .venv/bin/python -m pip install -q --disable-pip-version-check torch==2.13.0
-.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[dev]"
+# ray: the optional distributed engine; installed here so its tests run
+.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[dev,ray]"
 echo "setup: ready (.venv)"

@@ -2,6 +2,7 @@
 
     python scripts/wind_sweep.py                          # A, B, C; budgets 25, 41, 57, 73, 75
     python scripts/wind_sweep.py --maps C --sweep-step 10 --speeds 0 9
+    RAY_ADDRESS=HEAD:6379 python scripts/wind_sweep.py --ray   # on a Ray cluster (README)
 
 Per map: the paper agent, the paper agent + return guard, the wind-robust agent, the safe greedy
 planner, the safe greedy planner + guard (``review/results.py``, ``wind_variants``), each at
@@ -14,10 +15,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 
 from cpp_mujoco.evaluate import protocol_budgets
 from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.physics.ray_engine import import_ray, ray_runtime
 from cpp_mujoco.physics.turbulence import LEVELS
 from cpp_mujoco.review.plots import wind_sweep_figure
 from cpp_mujoco.review.results import (
@@ -55,8 +58,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--turbulence", default="moderate", choices=LEVELS, help="above 0 m/s")
     parser.add_argument("--policies", nargs="+", default=None, help="e.g. 'ddqn[A] + guard'")
     parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
+    parser.add_argument("--ray", action="store_true", help="fly on Ray (pip install -e .[ray])")
+    parser.add_argument(
+        "--ray-address", help="Ray cluster to fly on (default: RAY_ADDRESS, else a local one)"
+    )
     parser.add_argument("--out", default="out/wind_sweep", help="output folder")
     args = parser.parse_args(argv)
+    if args.ray_address and not args.ray:
+        parser.error("--ray-address needs --ray")
+    if args.ray:
+        try:
+            import_ray()
+        except ImportError as exc:
+            parser.error(str(exc))
     if any(not 0 <= s <= 12 for s in args.speeds):
         parser.error(f"--speeds must be within 0..12 m/s, got {args.speeds}")
     out = Path(args.out)
@@ -69,22 +83,24 @@ def main(argv: list[str] | None = None) -> int:
     budgets = protocol_budgets(step=args.sweep_step)  # 75, the top, always included
     points = Table(f"MuJoCo under wind + {args.turbulence} turbulence", RATED_COLUMNS)
     results = []
-    for grid_map in grid_maps:
-        for name, policy, guard in variants[grid_map.label]:
-            for speed in args.speeds:
-                result = evaluate_in_winds(
-                    policy, grid_map, speed, turbulence=args.turbulence if speed else "none",
-                    budgets=budgets, policy_name=name, workers=args.workers,
-                    progress=sys.stderr.isatty(),
-                    env_kwargs={"return_guard": True} if guard else None,
-                )  # fmt: skip
-                results.append(result)
-                points.rows.append(rated_row(result))
-                print(points.render().splitlines()[-1], flush=True)
-                tables = {"sweep": pivot(results, args.speeds), "points": points}
-                write_tables(out / "wind_sweep.json", tables)
-                write_rendered(out / "wind_sweep.md", tables, "markdown")
-                wind_sweep_figure(results, out / "wind_sweep.png")
+    engine = "ray" if args.ray else "local"
+    with ray_runtime(args.ray_address, args.workers) if args.ray else nullcontext():  # once
+        for grid_map in grid_maps:
+            for name, policy, guard in variants[grid_map.label]:
+                for speed in args.speeds:
+                    result = evaluate_in_winds(
+                        policy, grid_map, speed, turbulence=args.turbulence if speed else "none",
+                        budgets=budgets, policy_name=name, workers=args.workers, engine=engine,
+                        progress=sys.stderr.isatty(),
+                        env_kwargs={"return_guard": True} if guard else None,
+                    )  # fmt: skip
+                    results.append(result)
+                    points.rows.append(rated_row(result))
+                    print(points.render().splitlines()[-1], flush=True)
+                    tables = {"sweep": pivot(results, args.speeds), "points": points}
+                    write_tables(out / "wind_sweep.json", tables)
+                    write_rendered(out / "wind_sweep.md", tables, "markdown")
+                    wind_sweep_figure(results, out / "wind_sweep.png")
     print(pivot(results, args.speeds).render())
     print(f"\nwritten: {out}/wind_sweep.md, wind_sweep.json, wind_sweep.png")
     return 0

@@ -202,7 +202,7 @@ from tests.test_policy_protocol import FailsInEpisode, UnpicklesBadly, map_c_wit
 small = map_c_with_landing_cells(3)
 cases = {
     "bad option": (SafeGreedyPlanner(), {"env_kwargs": {"wind_sped": 3.0}}),
-    "episode 5": (FailsInEpisode(5), {}),
+    "episode 0": (FailsInEpisode(0), {}),  # one batch, started with its first episode's seed
     "unpickle": (UnpicklesBadly(), {}),
 }
 out = {}
@@ -265,5 +265,5 @@ def test_worker_failures_end_the_run_with_the_workers_error():
     out = json.loads(run_isolated(_FAILURES))
     kind, message, seconds = out["bad option"]
     assert "wind_sped" in message and seconds < 10  # rejected in the parent, no worker started
-    assert out["episode 5"][:2] == ["RuntimeError", "policy failed in episode 5"]
+    assert out["episode 0"][:2] == ["RuntimeError", "policy failed in episode 0"]
     assert out["unpickle"][:2] == ["RuntimeError", "cannot restore this policy in a worker"]

@@ -262,12 +262,10 @@ class BatchedFlight:
         R = quat_to_mat(qp[:, 3:])
         on = self.motors_on[i]
         # ---- failure checks on the current state
-        failure = np.full(i.size, None, dtype=object)
-        out = (np.abs(pos[:, 0]) > bx) | (np.abs(pos[:, 1]) > by) | (pos[:, 2] > bz)
-        failure[out] = "left the arena"
-        failure[(failure == None) & (R[:, 8] < one.cos_flip) & on] = "flipped over"  # noqa: E711
         broken = ~np.isfinite(qp.sum(1)) | self._reset_by_mujoco[i]
-        failure[broken] = "numerical divergence (NaN or unstable acceleration)"
+        out = (np.abs(pos[:, 0]) > bx) | (np.abs(pos[:, 1]) > by) | (pos[:, 2] > bz)
+        flipped = (R[:, 8] < one.cos_flip) & on
+        failed = broken | out | flipped
         with np.errstate(invalid="ignore"):
             row = np.floor(geo.height / 2 - pos[:, 1] * inv)
             col = np.floor(pos[:, 0] * inv + geo.width / 2)
@@ -276,13 +274,18 @@ class BatchedFlight:
         self.nfz_violations[i] += k * (~inside | self.no_fly[cell])
         p_ref, v_ref, a_ref = self.refs(i, t[i])
         e = pos - p_ref
-        track = (failure == None) & on  # noqa: E711
+        track = ~failed & on
         off2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1]
         worst2[i] = np.where(track & (off2 > worst2[i]), off2, worst2[i])
-        failure[track & (off2 + e[:, 2] * e[:, 2] > max_err2)] = "diverged from the reference"
-        ended = failure != None  # noqa: E711
-        for j in np.flatnonzero(ended).tolist():
-            res["failure"][i[j]] = failure[j]
+        diverged = track & (off2 + e[:, 2] * e[:, 2] > max_err2)
+        ended = failed | diverged
+        for j in np.flatnonzero(ended).tolist():  # in the single flight's order of checks
+            res["failure"][i[j]] = (
+                "numerical divergence (NaN or unstable acceleration)" if broken[j]
+                else "left the arena" if out[j]
+                else "flipped over" if flipped[j]
+                else "diverged from the reference"
+            )  # fmt: skip
         # ---- camera frames due, then: is the action done?
         due = ~ended & (t0[i] + t[i] >= self.camera.next_frame[i])
         if due.any():
@@ -334,6 +337,8 @@ class BatchedFlight:
         f = np.zeros((i.size, 4))
         on = self.motors_on[i]
         if on.any():
+            if on.all():  # the common case: views instead of copies
+                on = slice(None)
             j = i[on]
             self.controller.observe(j, vel[on], R[on], act[on], dt)
             f_on = self.controller(j, pos[on], vel[on], R[on], omega[on], p_ref[on],
@@ -346,7 +351,9 @@ class BatchedFlight:
                 self.battery.current[j[cut]] = 0.0
                 f_on[cut] = 0.0
                 t[j[cut]] = 0.0  # the fall gets its own time limit
-            self.energy_used[j[~cut]] += drawn[~cut]
+                self.energy_used[j[~cut]] += drawn[~cut]
+            else:
+                self.energy_used[j] += drawn
             f[on] = f_on
             fail = (
                 ~cut & ~a.begun_landing[j] & (emergency[j] == None)  # noqa: E711

@@ -56,7 +56,16 @@ class BatchedEnergy:
         vp = np.maximum(v_perp, -ff.vrs * vh)
         v = -0.5 * vp + np.sqrt(0.25 * vp * vp + vh2)
         moving = np.broadcast_to(v_par != 0.0, v.shape)
-        if moving.any():
+        if moving.all():  # the common case, without the masks
+            vpar = np.broadcast_to(v_par, v.shape)
+            vpar2, vh4 = vpar * vpar, vh2 * vh2
+            w = np.where(vh2 < v * vpar, vh2 / vpar, v)
+            for _ in ff.steps:
+                q = (w + vp) * (w + vp) + vpar2
+                sw = w + vp
+                w = w - (w * w * q - vh4) / (2.0 * w * (q + w * sw))
+            v = w
+        elif moving.any():
             vpar = np.broadcast_to(v_par, v.shape)
             safe = np.where(moving, vpar, 1.0)
             vpar2, vh4 = vpar * vpar, vh2 * vh2
@@ -110,6 +119,10 @@ class BatchedBattery:
         """:meth:`Battery.draw` for packs ``i``: chemical J each, NaN where it cannot."""
         s = self.spec
         n, r, q, s0 = s.cells, s.resistance, self.charge_c[i], self.soc[i]
+        if np.isfinite(q).all() and (power > 0.0).all():
+            fast = self._draw_finite(i, power, dt, n, r, q, s0)
+            if fast is not None:
+                return fast
         finite = np.isfinite(q)
         qs = np.where(finite, q, 1.0)
         f0 = _ocv_integral(s0)  # the same double every pass: computed once
@@ -148,6 +161,31 @@ class BatchedBattery:
         self.loss_j[good] += loss[ok]
         self.failure[bad] = OVERLOAD
         return np.where(ok, chem, np.nan)
+
+    def _draw_finite(self, i, power, dt, n, r, q, s0) -> np.ndarray | None:
+        """:meth:`draw` when every pack is finite, loaded and able to carry its load (the
+        common case, without the masks); None when one is not (then the general path runs:
+        nothing has changed yet)."""
+        f0 = _ocv_integral(s0)
+        four_rp = 4.0 * r * power
+        two_p = 2.0 * power
+        v = n * _ocv(s0)
+        for _ in range(4):  # the first current, then three passes of the mean OCV
+            disc = v * v - four_rp
+            if (disc < 0.0).any():
+                return None
+            current = two_p / (v + np.sqrt(disc))
+            s1 = s0 - current * dt / q
+            v = n * (f0 - _ocv_integral(s1)) / (s0 - s1)
+        loss = current * current * r * dt
+        chem = v * current * dt
+        self.soc[i] = np.maximum(s1, 0.0)
+        self.current[i] = current
+        self.below_cutoff[i] = v - current * r < n * self.spec.cutoff_v
+        self.drawn_j[i] += chem
+        self.load_j[i] += power * dt
+        self.loss_j[i] += loss
+        return chem
 
 
 class NoiseBlocks:

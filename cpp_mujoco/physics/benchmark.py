@@ -1,4 +1,4 @@
-"""How fast the physics env runs compared with MuJoCo alone, on one core.
+"""How fast the physics envs run compared with MuJoCo alone, and the protocol over workers.
 
 ``env`` physics steps/s are measured while the env flies a mission (random actions, a fresh
 episode whenever one ends); ``raw`` is a Python loop of single ``mj_step`` calls on the same
@@ -151,6 +151,46 @@ def benchmark_batched(
     }
 
 
+def benchmark_protocol(map: str = "A", step: int = 1, ray_step: int = 5) -> dict:  # noqa: A002
+    """Wall time of the MuJoCo protocol of the bundled agent on ``map`` (budgets every ``step``)
+    over 2 local worker processes, and on Ray with 1 and 2 CPUs (budgets every ``ray_step``; each
+    runtime started before the clock starts). The Ray runs must agree episode by episode."""
+    from cpp_mujoco.agent import load_agent
+    from cpp_mujoco.evaluate import evaluate, protocol_budgets
+
+    policy = load_agent(map)
+    start = time.perf_counter()
+    local = evaluate(policy, map, backend="mujoco", budgets=protocol_budgets(step=step), workers=2)
+    out = {
+        f"protocol_{map}_episodes": int(local.budgets.size),
+        f"protocol_{map}_local_2_workers_s": time.perf_counter() - start,
+    }
+    try:
+        import ray
+    except ImportError:
+        return out
+    budgets = protocol_budgets(step=ray_step)
+    results = {}
+    for cpus in (1, 2):
+        ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False)
+        try:
+            start = time.perf_counter()
+            results[cpus] = evaluate(
+                policy, map, backend="mujoco", budgets=budgets, workers=cpus, engine="ray"
+            )
+            out[f"ray_{cpus}_cpu_s"] = time.perf_counter() - start
+        finally:
+            ray.shutdown()
+    energy = [r.physics["energy_used_j"] for r in results.values()]
+    if not np.array_equal(*energy):
+        raise RuntimeError("Ray with 1 and 2 CPUs flew different episodes")
+    out.update(
+        ray_episodes=int(results[1].budgets.size),
+        ray_scaling=out["ray_1_cpu_s"] / out["ray_2_cpu_s"],
+    )
+    return out
+
+
 def flight_figures(wind_speed: float = 8.0) -> dict:
     """The physical figures quoted in ``docs/physics.md``: calibration, a one-cell step response,
     landing energy and the headwind energy ratios (default configuration)."""
@@ -187,8 +227,9 @@ def flight_figures(wind_speed: float = 8.0) -> dict:
 
 
 def run() -> dict:
-    """The ``physics`` section as ``cpp-mujoco benchmark`` runs it."""
-    return benchmark_physics(seconds=5.0)
+    """The ``physics`` section as ``cpp-mujoco benchmark`` runs it (≈ 10 min on 2 cores: the
+    full protocol on map A is part of it)."""
+    return {**benchmark_physics(seconds=5.0), **benchmark_batched(), **benchmark_protocol()}
 
 
 if __name__ == "__main__":
@@ -198,6 +239,15 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("seconds", nargs="?", type=float, default=5.0)
     parser.add_argument("--figures", action="store_true", help="physical figures instead")
+    parser.add_argument("--batched", type=int, metavar="N", help="single vs N batched drones")
+    parser.add_argument("--protocol", type=int, metavar="STEP", help="protocol wall times")
     args = parser.parse_args()
-    result = flight_figures() if args.figures else benchmark_physics(args.seconds)
+    if args.figures:
+        result = flight_figures()
+    elif args.batched:
+        result = benchmark_batched(args.seconds, args.batched)
+    elif args.protocol:
+        result = benchmark_protocol(step=args.protocol)
+    else:
+        result = benchmark_physics(args.seconds)
     print(json.dumps(result, indent=1))

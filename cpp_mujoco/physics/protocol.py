@@ -1,14 +1,30 @@
 """The evaluation protocol in physics: many MuJoCo episodes, in this process or over workers.
 
-Every episode is :func:`cpp_mujoco.episode.run_episode` on an unwrapped ``MuJoCo-v0`` env, seeded
-by its index, so the same episode gives the same numbers in or out of process. The env is built
-(and so its options validated) in the calling process first, and the policy is pickled there, so
-bad options or an unpicklable policy fail at once with their own message. Each worker then builds
-the env and unpickles the policy on its first task — never in the pool's initializer, where a
-failure would only break the pool. Any exception in a worker ends the run with that exception (its
-message plus a note naming the episode); a worker that dies ends it with ``BrokenProcessPool``.
-Results come back per task, so a progress bar can follow. A torch policy runs on one torch thread
-per process (the processes share the cores); in this process the caller's count is restored.
+The episodes are flown in batches (:func:`chunks`: ordered by budget, so a batch's episodes last
+about as long) by the batched ``MuJoCo-v0`` (:mod:`~cpp_mujoco.physics.vector_env`), each
+episode seeded by its index exactly as a single env's episode — so the same episode gives the
+same numbers in or out of process, in any batch, on any engine (``tests/test_episode_runner.py``
+compares it with :func:`~cpp_mujoco.episode.run_episode` on a single env). A stateful policy is
+started once per batch, seeded with its first episode's index, as in the grid protocol.
+A single env is built (and so the options validated) in the calling process first, and the
+policy is pickled there, so bad options or an unpicklable policy fail at once with their own
+message.
+
+Out of process, the work is a :class:`Job` (the pickled policy, the map, the env options) and
+chunks of tasks; :func:`fly_chunk` — chunk in, records out — is what every worker runs, whichever
+engine carries it. A worker builds its envs and unpickles the policy on its first chunk of a job
+and keeps them for the job's later chunks (:func:`worker_state`); never in a pool's initializer,
+where a failure would only break the pool.
+
+Two engines carry the chunks: ``"local"``, a spawn process pool on this machine, and ``"ray"``
+(:mod:`cpp_mujoco.physics.ray_engine`), a local Ray runtime or a cluster. The pool stays next to
+Ray because Ray is an optional, heavy extra (hundreds of MB, seconds to start a runtime): the base
+install must still fly the protocol on every core, and a one-machine run gains nothing from Ray.
+On both, any exception in a worker ends the run with that exception (its message plus a note
+naming the batch's episodes); a pool worker that dies ends the run with ``BrokenProcessPool``, a Ray
+worker that dies has its chunk retried. Results come back per chunk, so a progress bar can
+follow. A torch policy runs on one torch thread per process (the processes share the cores); in
+this process the caller's count is restored.
 """
 
 from __future__ import annotations
@@ -18,22 +34,44 @@ import os
 import pickle
 import sys
 import tempfile
+import uuid
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from cpp_mujoco.episode import EpisodeRecord, run_episode
+from cpp_mujoco.episode import EpisodeRecord, run_vector_episodes
 from cpp_mujoco.io import atomic_write_bytes
 
-_WORKER: dict[str, Any] = {}
-TASKS_PER_SUBMIT = 2  # episodes per worker task: small, so a failure ends the run quickly
+ENGINES = ("local", "ray")  # this machine's process pool, or Ray (an optional extra)
+# episodes per worker task, flown together in one batched env: enough drones to spread the
+# control tick's numpy overhead (measured: `python -m cpp_mujoco.physics.benchmark --batched`),
+# few enough that a run has several tasks per worker and a failure ends it soon
+EPISODES_PER_CHUNK = 72
 
 Task = tuple[int, tuple[int, int], int]  # (episode index, start cell, budget)
+
+
+@dataclass(frozen=True)
+class Job:
+    """What every chunk of one run needs: made once in the caller, sent to each worker once.
+
+    ``key`` names the job, so a worker reused for a later run (a Ray worker, a sweep's next
+    wind) rebuilds its env and policy instead of flying the new chunks with the old ones."""
+
+    payload: bytes  # the pickled policy
+    grid_map: Any  # GridMap
+    env_kwargs: dict
+    key: str = field(default_factory=lambda: uuid.uuid4().hex)
+
+
+_STATE: dict[str, Any] = {}  # this worker process's job key, env and policy
+_POOL_JOB: dict[str, Any] = {}  # a pool worker's job file, and the job once read
 
 
 def make_env(grid_map, env_kwargs: dict):
@@ -61,31 +99,73 @@ def one_torch_thread() -> Iterator[None]:
         torch.set_num_threads(before)
 
 
-def _init_worker(job_path: str) -> None:
-    """Only store the job file's path (nothing here may fail: see the module docstring)."""
-    _WORKER["job_path"] = job_path
+class VectorEnvs:
+    """A worker's batched envs of one job, one per batch size (a run's last batch is smaller):
+    compiled once, reset for every batch."""
+
+    def __init__(self, grid_map, env_kwargs: dict):
+        self.grid_map, self.env_kwargs = grid_map, env_kwargs
+        self._envs: dict[int, Any] = {}
+
+    def get(self, n: int):
+        if n not in self._envs:
+            from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
+
+            self._envs[n] = MuJoCoVectorEnv(
+                num_envs=n, map=self.grid_map, autoreset_mode="Disabled", **self.env_kwargs
+            )
+        return self._envs[n]
+
+    def close(self) -> None:
+        for env in self._envs.values():
+            env.close()
+        self._envs.clear()
 
 
-def _fly_tasks(tasks: list[Task]) -> list[EpisodeRecord]:
-    """Worker entry: build env and policy on first use, then fly ``tasks``."""
-    if "env" not in _WORKER:
-        with open(_WORKER["job_path"], "rb") as job:
-            payload, grid_map, env_kwargs = pickle.load(job)
-        _WORKER["policy"] = pickle.loads(payload)
+def worker_state(job: Job) -> tuple[VectorEnvs, Any]:
+    """(envs, policy) of ``job`` in this worker process: built on its first chunk, kept for the
+    rest; a new job closes the old envs first (one job's envs at a time per process)."""
+    if _STATE.get("key") != job.key:
+        if "envs" in _STATE:
+            _STATE.pop("envs").close()
+        _STATE.clear()
+        policy = pickle.loads(job.payload)
         if "torch" in sys.modules:  # a worker's own process: one thread for good
             sys.modules["torch"].set_num_threads(1)
-        _WORKER["env"] = make_env(grid_map, env_kwargs)
-    return [fly_one(_WORKER["env"], _WORKER["policy"], task) for task in tasks]
+        _STATE.update(key=job.key, policy=policy, envs=VectorEnvs(job.grid_map, job.env_kwargs))
+    return _STATE["envs"], _STATE["policy"]
 
 
-def fly_one(env, policy, task: Task) -> EpisodeRecord:
-    """One protocol episode, seeded by its index (the record's ``seed``); an error names it."""
-    index, start, budget = task
+def fly_chunk(job: Job, tasks: list[Task]) -> list[EpisodeRecord]:
+    """A worker's entry, on every engine: fly ``tasks`` of ``job`` (chunk in, records out)."""
+    envs, policy = worker_state(job)
+    return fly_tasks(envs, policy, tasks)
+
+
+def fly_tasks(envs: VectorEnvs, policy, tasks: list[Task]) -> list[EpisodeRecord]:
+    """``tasks`` flown together in one batched env, episode i seeded by its index as a single
+    env's would be; the policy starts the batch seeded by its first episode's index. An error
+    names the batch's episodes."""
     try:
-        return run_episode(env, policy, seed=index, options={"start": start, "budget": budget})
+        return run_vector_episodes(
+            envs.get(len(tasks)), policy, seeds=[index for index, _, _ in tasks],
+            options={"start": np.array([s for _, s, _ in tasks]),
+                     "budget": np.array([b for _, _, b in tasks])},
+            batch_seed=tasks[0][0],
+        )  # fmt: skip
     except Exception as exc:
-        exc.add_note(f"in physics episode {index} (start {start}, budget {budget})")
+        episodes = ", ".join(f"{i} (start {s}, budget {b})" for i, s, b in tasks[:4])
+        more = f" and {len(tasks) - 4} more" if len(tasks) > 4 else ""
+        exc.add_note(f"in a batch of physics episodes: {episodes}{more}")
         raise
+
+
+def chunks(tasks: list[Task], size: int = EPISODES_PER_CHUNK) -> list[list[Task]]:
+    """``tasks`` ordered by budget, ``size`` at a time: the unit of work a worker is given.
+    Episodes of one budget last about as long, so a batch's drones finish together instead of
+    most of them waiting for one long episode. The same chunks on every engine."""
+    ordered = sorted(tasks, key=lambda task: (task[2], task[0]))
+    return [ordered[i : i + size] for i in range(0, len(ordered), size)]
 
 
 def fly_episodes(
@@ -97,13 +177,21 @@ def fly_episodes(
     progress: bool = True,
     env_kwargs: dict | None = None,
     env=None,
+    engine: str = "local",
+    ray_address: str | None = None,
 ) -> list[EpisodeRecord]:
     """Fly every (start, budget) episode; results in episode order, one per episode.
 
     ``env``: an env already built from ``env_kwargs`` (it is closed here); else one is built
-    first, so a bad option fails before any worker starts."""
+    first, so a bad option fails before any worker starts. ``engine="local"``: ``workers``
+    processes here (default: all cores; 1 flies in this process); ``"ray"``: Ray tasks on the
+    runtime at ``ray_address`` (else ``RAY_ADDRESS``, else a local one with ``workers`` CPUs)."""
     from tqdm import tqdm
 
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; available: {', '.join(ENGINES)}")
+    if ray_address is not None and engine != "ray":
+        raise ValueError("ray_address needs engine='ray'")
     env_kwargs = dict(env_kwargs or {})
     tasks: list[Task] = [
         (i, (int(s[0]), int(s[1])), int(b))
@@ -116,15 +204,24 @@ def fly_episodes(
     records: list[EpisodeRecord] = []
     bar = tqdm(total=len(tasks), desc=f"MuJoCo {label}", unit="ep", disable=not progress)
     try:
-        if workers == 1:
-            with one_torch_thread():
-                for task in tasks:
-                    records.append(fly_one(env, policy, task))
-                    bar.update()
+        if engine == "local" and workers == 1:
+            envs = VectorEnvs(grid_map, env_kwargs)
+            try:
+                with one_torch_thread():
+                    for chunk in chunks(tasks):
+                        records += fly_tasks(envs, policy, chunk)
+                        bar.update(len(chunk))
+            finally:
+                envs.close()
         else:
             env.close()
-            payload = pickle.dumps(policy)  # an unpicklable policy fails here, in the caller
-            records = _fly_in_pool(payload, grid_map, env_kwargs, tasks, workers, bar)
+            job = Job(pickle.dumps(policy), grid_map, env_kwargs)  # unpicklable: fails here
+            if engine == "ray":
+                from cpp_mujoco.physics.ray_engine import fly_on_ray
+
+                records = fly_on_ray(job, chunks(tasks), bar, workers, ray_address)
+            else:
+                records = _fly_in_pool(job, tasks, workers, bar)
     finally:
         env.close()
         bar.close()
@@ -134,27 +231,37 @@ def fly_episodes(
     return records
 
 
-def _fly_in_pool(payload, grid_map, env_kwargs, tasks, workers, bar) -> list[EpisodeRecord]:
-    """The workers get the policy, map and options from a job file, not as initializer
+def _init_worker(job_path: str) -> None:
+    """Only store the job file's path (nothing here may fail: see the module docstring)."""
+    _POOL_JOB["path"] = job_path
+
+
+def _pool_chunk(tasks: list[Task]) -> list[EpisodeRecord]:
+    """A pool worker's task: the job comes from its file (read once per process)."""
+    if "job" not in _POOL_JOB:
+        with open(_POOL_JOB["path"], "rb") as file:
+            _POOL_JOB["job"] = pickle.load(file)
+    return fly_chunk(_POOL_JOB["job"], tasks)
+
+
+def _fly_in_pool(job: Job, tasks: list[Task], workers: int, bar) -> list[EpisodeRecord]:
+    """The workers get the job (policy, map and options) from a file, not as initializer
     arguments: spawn writes those into a pipe before the child reads them, and a child that dies
     first (a user script without the ``__main__`` guard re-runs itself there) leaves that write
     blocked forever once it exceeds the pipe's 64 KiB — a network's weights do. A path never
     does, so the dead child surfaces as ``BrokenProcessPool``."""
     ctx = mp.get_context("spawn")  # torch's threads do not survive fork
     with tempfile.TemporaryDirectory(prefix="cpp_mujoco_workers_") as folder:
-        job = Path(folder) / "job.pickle"
-        atomic_write_bytes(job, pickle.dumps((payload, grid_map, env_kwargs)))
-        return _run_pool(ctx, str(job), tasks, workers, bar)
+        path = Path(folder) / "job.pickle"
+        atomic_write_bytes(path, pickle.dumps(job))
+        return _run_pool(ctx, str(path), tasks, workers, bar)
 
 
 def _run_pool(ctx, job: str, tasks, workers, bar) -> list[EpisodeRecord]:
     records: list[EpisodeRecord] = []
     pool = ProcessPoolExecutor(workers, ctx, _init_worker, (job,))
     try:
-        pending: set[Future] = {
-            pool.submit(_fly_tasks, tasks[i : i + TASKS_PER_SUBMIT])
-            for i in range(0, len(tasks), TASKS_PER_SUBMIT)
-        }
+        pending: set[Future] = {pool.submit(_pool_chunk, chunk) for chunk in chunks(tasks)}
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
