@@ -7,7 +7,8 @@ from N, E, S and W with the budgets dealt round-robin to the four (``cpp_mujoco.
     python scripts/rated_wind.py --budget-step 5    # quicker
     python scripts/rated_wind.py --guard            # also the paper agents and greedy + guard
     python scripts/rated_wind.py --ray --ray-address HEAD:6379   # on a Ray cluster (README)
-Writes out/rated_wind/{rated_wind.md, rated_wind.json}; exits 1 if any no-fly violation.
+Writes out/rated_wind/{rated_wind.md, rated_wind.json, index.html}; exits 1 if any no-fly
+violation.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from pathlib import Path
 
 from cpp_mujoco.evaluate import protocol_budgets
 from cpp_mujoco.maps import bundled_maps, load_map
-from cpp_mujoco.physics.ray_engine import import_ray, ray_runtime
+from cpp_mujoco.physics.ray_engine import add_ray_options, ray_option_error, ray_runtime
+from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (
     RATED_COLUMNS,
     Table,
@@ -37,22 +39,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget-step", type=int, default=1, help="protocol budgets step")
     parser.add_argument("--policies", nargs="+", default=None, help="e.g. safe-greedy")
     parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
-    parser.add_argument("--ray", action="store_true", help="fly on Ray (pip install -e .[ray])")
-    parser.add_argument(
-        "--ray-address", help="Ray cluster to fly on (default: RAY_ADDRESS, else a local one)"
-    )
+    add_ray_options(parser)
     parser.add_argument(
         "--guard", action="store_true", help="add '+ guard' runs (return_guard=True)"
     )
     parser.add_argument("--out", default="out/rated_wind", help="output folder")
     args = parser.parse_args(argv)
-    if args.ray_address and not args.ray:
-        parser.error("--ray-address needs --ray")
-    if args.ray:
-        try:
-            import_ray()
-        except ImportError as exc:
-            parser.error(str(exc))
+    if error := ray_option_error(args):
+        parser.error(error)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     table = Table("the rated wind: 9 m/s from N/E/S/W + moderate turbulence", RATED_COLUMNS)
@@ -78,7 +72,9 @@ def main(argv: list[str] | None = None) -> int:
                 write_rendered(out / "rated_wind.md", {"rated_wind": table}, "markdown")
     print(table.render())
     violations = sum(row["values"]["nfz_violations"] for row in table.rows)
-    print(f"\nwritten: {out}/rated_wind.md, rated_wind.json; no-fly violations: {violations}")
+    write_report(out, script_command(__file__, argv))
+    print(f"\nwritten: {out}/rated_wind.md, rated_wind.json, index.html; no-fly violations: "
+          f"{violations}")  # fmt: skip
     return 1 if violations else 0
 
 

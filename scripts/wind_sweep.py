@@ -8,7 +8,8 @@ Per map: the paper agent, the paper agent + return guard, the wind-robust agent,
 planner, the safe greedy planner + guard (``review/results.py``, ``wind_variants``), each at
 every speed with the wind from N, E, S and W, the budgets dealt round-robin to the four, in
 ``--turbulence`` above 0 m/s. Writes out/wind_sweep/{wind_sweep.md, wind_sweep.json,
-wind_sweep.png}, rewritten after every point so an interrupted sweep keeps what it flew.
+wind_sweep.png}, rewritten after every point so an interrupted sweep keeps what it flew, and at
+the end index.html, the page of all three (``review/report.py``).
 """
 
 from __future__ import annotations
@@ -18,11 +19,12 @@ import sys
 from contextlib import nullcontext
 from pathlib import Path
 
-from cpp_mujoco.evaluate import protocol_budgets
+from cpp_mujoco.evaluate import protocol_budgets, split_conditions
 from cpp_mujoco.maps import bundled_maps, load_map
-from cpp_mujoco.physics.ray_engine import import_ray, ray_runtime
+from cpp_mujoco.physics.ray_engine import add_ray_options, ray_option_error, ray_runtime
 from cpp_mujoco.physics.turbulence import LEVELS
 from cpp_mujoco.review.plots import wind_sweep_figure
+from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (
     RATED_COLUMNS,
     Table,
@@ -36,12 +38,14 @@ from cpp_mujoco.wind_protocol import evaluate_in_winds
 
 
 def pivot(results, speeds) -> Table:
-    """One row per map and policy, one "landing / coverage" cell per speed."""
+    """One row per map and policy, one "landing / coverage" cell per speed; a row carries the
+    backend and the conditions its points share (the speeds are its columns)."""
     columns = ["map", "policy", "episodes per point", *(f"{s:g} m/s" for s in speeds)]
     table = Table("landing / coverage against the steady wind (MuJoCo)", columns)
     for key in dict.fromkeys((r.map_name, r.policy_name) for r in results):
         cells = {wind_speed(r): r for r in results if (r.map_name, r.policy_name) == key}
-        row = {"map": key[0], "policy": key[1]}
+        shared, _ = split_conditions([r.conditions for r in cells.values()])
+        row = {"map": key[0], "policy": key[1], "backend": "mujoco", "conditions": shared}
         row["episodes per point"] = "/".join(sorted({str(r.landed.size) for r in cells.values()}))
         for s in speeds:
             r = cells.get(s)
@@ -58,19 +62,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--turbulence", default="moderate", choices=LEVELS, help="above 0 m/s")
     parser.add_argument("--policies", nargs="+", default=None, help="e.g. 'ddqn[A] + guard'")
     parser.add_argument("--workers", type=int, default=None, help="MuJoCo processes")
-    parser.add_argument("--ray", action="store_true", help="fly on Ray (pip install -e .[ray])")
-    parser.add_argument(
-        "--ray-address", help="Ray cluster to fly on (default: RAY_ADDRESS, else a local one)"
-    )
+    add_ray_options(parser)
     parser.add_argument("--out", default="out/wind_sweep", help="output folder")
     args = parser.parse_args(argv)
-    if args.ray_address and not args.ray:
-        parser.error("--ray-address needs --ray")
-    if args.ray:
-        try:
-            import_ray()
-        except ImportError as exc:
-            parser.error(str(exc))
+    if error := ray_option_error(args):
+        parser.error(error)
     if any(not 0 <= s <= 12 for s in args.speeds):
         parser.error(f"--speeds must be within 0..12 m/s, got {args.speeds}")
     out = Path(args.out)
@@ -102,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
                     write_rendered(out / "wind_sweep.md", tables, "markdown")
                     wind_sweep_figure(results, out / "wind_sweep.png")
     print(pivot(results, args.speeds).render())
-    print(f"\nwritten: {out}/wind_sweep.md, wind_sweep.json, wind_sweep.png")
+    report = write_report(out, script_command(__file__, argv))
+    print(f"\nwritten: {out}/wind_sweep.md, wind_sweep.json, wind_sweep.png; page: {report}")
     return 0
 
 

@@ -48,6 +48,26 @@ def import_ray() -> Any:
     return ray
 
 
+def add_ray_options(parser) -> None:
+    """``--ray`` and ``--ray-address`` on a script's argument parser."""
+    parser.add_argument("--ray", action="store_true", help="fly on Ray (pip install -e .[ray])")
+    parser.add_argument(
+        "--ray-address", help="Ray cluster to fly on (default: RAY_ADDRESS, else a local one)"
+    )
+
+
+def ray_option_error(args) -> str | None:
+    """What is wrong with a script's ``--ray`` options (None: nothing), before anything runs."""
+    if args.ray_address and not args.ray:
+        return "--ray-address needs --ray"
+    if args.ray:
+        try:
+            import_ray()
+        except ImportError as exc:
+            return str(exc)
+    return None
+
+
 @contextmanager
 def ray_runtime(address: str | None = None, workers: int | None = None) -> Iterator[Any]:
     """Ray, initialised for the ``with`` block: the runtime already initialised in this process
