@@ -1,18 +1,21 @@
 """The README's main job: the bundled agents (or, without them, the planners) on every bundled
 map — the paper's protocol on the grid, the same protocol flown in MuJoCo, and one mission per map
-recorded for review (Rerun recording, chase and onboard videos).
+recorded for review (Rerun recording, chase and onboard videos), and ``index.html``: the page of
+it all (:mod:`cpp_mujoco.review.report`), headed by the command that wrote it.
 
 A map given by path is the map evaluated and named (its label) in every table and file name; it
 gets no bundled agent (those were trained on the bundled maps) and no paper figures."""
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
 import numpy as np
 
 from cpp_mujoco.evaluate import evaluate, protocol_budgets
+from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, bundled_maps, load_map
 from cpp_mujoco.review.results import (
     DEMO_GRID_COLUMNS,
@@ -34,10 +37,13 @@ def run_demo(
     budget_step: int = 5,
     workers: int | None = None,
     progress: bool = False,
+    command: str | None = None,
 ) -> None:
-    """``maps``: names, PNG paths or GridMaps (default: the bundled maps)."""
+    """``maps``: names, PNG paths or GridMaps (default: the bundled maps). ``command``: the
+    command line shown atop ``index.html`` (default: this process's own)."""
     from cpp_mujoco.mission import fly_mission
     from cpp_mujoco.review.plots import coverage_figure, trajectories_figure
+    from cpp_mujoco.review.report import invocation, write_report
 
     grid_maps = [load_map(m) for m in maps or bundled_maps()]
     budgets = protocol_budgets(step=budget_step)
@@ -72,7 +78,10 @@ def run_demo(
             video=out / f"{stem}_chase.mp4", onboard_video=out / f"{stem}_onboard.mp4",
             progress=progress,
         )  # fmt: skip
-        missions.append(outcome)
+        missions.append(outcome)  # what flew it, beside its files, for the page
+        atomic_write_text(
+            out / f"{stem}.json", json.dumps(outcome.as_dict(), indent=2, default=json_default)
+        )
     print("\nThe paper's protocol on the grid (every landing cell × budgets 25..75):")
     print(grid_table.render())
     print(f"\nGrid vs MuJoCo (every landing cell × budgets {budgets[0]}..{budgets[-1]} step "
@@ -86,5 +95,6 @@ def run_demo(
               f"{m.coverage_ratio:.0%}, {m.energy_used_j / 1000:.1f} kJ")  # fmt: skip
         for kind, path in m.files.items():
             print(f"    {kind:14s} {path}")
-    print(f"\nEverything is in {out}/ ({time.perf_counter() - started:.0f} s).")
+    report = write_report(out, command or invocation())
+    print(f"\nEverything is in {out}/ ({time.perf_counter() - started:.0f} s); the page: {report}")
     print(f"Open a recording with:  rerun {missions[0].files['rrd']}")

@@ -6,7 +6,8 @@ Full protocol on the grid (every landing cell × every budget 25..75, greedy). W
 coverage-per-budget figure against the planners and the upper bound (the paper's Fig. 3), example
 trajectories at three budgets for each policy (Fig. 2), every result as JSON, and ``results.txt``:
 landing ratio vs the paper's, coverage vs the safe greedy and beam-search planners (the same table
-with its conditions and unrounded numbers in ``results.json``).
+with its conditions and unrounded numbers in ``results.json``), and ``index.html``, the page of it
+all.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from pathlib import Path
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners import make_planner
+from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (
     PAPER_COLUMNS,
     Table,
@@ -55,7 +57,8 @@ def main(argv=None) -> int:
         table.rows.append(paper_row(by["ddqn"], by["safe-greedy"], by["beam-search"]))
     write_tables(out / "results.json", {"paper": table})
     write_rendered(out / "results.txt", {"paper": table})
-    print(f"\n{table.render()}\n\nfigures, JSON and results.txt: {out}/")
+    write_report(out, script_command(__file__, argv))
+    print(f"\n{table.render()}\n\nfigures, JSON and results.txt: {out}/ (page: index.html)")
     return 0
 
 

@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # Sets up everything cpp_mujoco needs on a fresh Debian/Ubuntu machine; safe to run again.
 #   - system libraries for offscreen OpenGL (EGL and OSMesa), when run as root
+#   - chromium (headless), when run as root: tests/test_report.py opens the results page in it
 #   - a virtual environment in .venv with the package, its pinned dependencies, dev tools and Ray
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 APT_PACKAGES=(libegl1 libgl1 libosmesa6 libglx-mesa0)
+# optional: a failed install (Ubuntu's chromium is a snap stub) only skips the page test
+OPTIONAL_APT_PACKAGES=(chromium)
 if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
   missing=()
   for pkg in "${APT_PACKAGES[@]}"; do
@@ -16,8 +19,20 @@ if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
     apt-get update -qq
     DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
   fi
+  optional=()
+  for pkg in "${OPTIONAL_APT_PACKAGES[@]}"; do
+    dpkg -s "$pkg" >/dev/null 2>&1 || optional+=("$pkg")
+  done
+  if [ ${#optional[@]} -gt 0 ]; then
+    echo "setup: installing ${optional[*]} (optional)"
+    { [ ${#missing[@]} -gt 0 ] || apt-get update -qq; } &&
+      DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+        "${optional[@]}" >/dev/null ||
+      echo "setup: could not install ${optional[*]}; tests/test_report.py will skip" >&2
+  fi
 else
   echo "setup: not root; make sure ${APT_PACKAGES[*]} are installed for offscreen rendering" >&2
+  echo "setup: and chromium, for tests/test_report.py (it skips without it)" >&2
 fi
 
 PYTHON=${PYTHON:-python3}

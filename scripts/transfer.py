@@ -3,7 +3,7 @@
 Regenerates the README's transfer tables (the wind sweep is ``scripts/wind_sweep.py``):
     python scripts/transfer.py                  # calm: the full protocol
     python scripts/transfer.py --budget-step 5  # quicker transfer table
-Writes out/transfer/{transfer.md, transfer.json, coverage_*.png}.
+Writes out/transfer/{transfer.md, transfer.json, coverage_*.png, index.html}.
 
 The energy table flies single actions on an open map (:mod:`cpp_mujoco.physics.action_energy`):
 steady wind, and the mean over ``--repeats`` gust histories in ``--turbulence``.
@@ -22,6 +22,7 @@ from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.turbulence import LEVELS
 from cpp_mujoco.review.plots import coverage_figure
+from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (
     TRANSFER_COLUMNS,
     Table,
@@ -51,6 +52,7 @@ def energy_table(turbulence: str, repeats: int) -> Table:
             "wind m/s": f"{a.wind_speed:g}",
             "from": COMPASS_NAMES[a.wind_direction] if a.wind_speed else "-",
             **{k: f"{a.mean_j[k] / unit:.3f}" if k in a.mean_j else "-" for k in KINDS},
+            "backend": "mujoco",
             "values": {"steady": vars(a), turbulence: vars(b), "unit_energy_j": unit},
             "conditions": {"physics_config": {"wind_speed": a.wind_speed,
                                               "wind_direction": a.wind_direction}},
@@ -93,7 +95,8 @@ def main(argv: list[str] | None = None) -> None:
     tables = {"energy": energy, "transfer": transfer}
     write_tables(out / "transfer.json", tables)
     write_rendered(out / "transfer.md", tables, "markdown")
-    print(f"\nwritten: {out}/transfer.md, transfer.json, coverage_*.png")
+    write_report(out, script_command(__file__, argv))
+    print(f"\nwritten: {out}/transfer.md, transfer.json, coverage_*.png, index.html")
 
 
 if __name__ == "__main__":

@@ -264,3 +264,87 @@ def test_a_video_without_its_index_is_recognised(tmp_path):
     data = path.read_bytes()
     cut.write_bytes(data[: data.index(b"moov") - 4])
     assert not _has_index(cut)
+
+
+def _log_windy_mission(rec: MissionRecorder, steps: int) -> None:
+    """Moves east along row 14 of map B in a 6 m/s wind from the east, then a landing; poses
+    at the camera rate (10 a move) with the wind, battery figures in each step's info."""
+    from cpp_mujoco.grid.actions import EAST, LAND
+
+    wind = np.array([-6.0, 0.0, 0.3])
+    for step in range(steps + 1):
+        for k in range(10):
+            t = 3.0 * step + 0.3 * k
+            rec.log_pose(t, [step + k / 10, 0.0, 6.0], wind=wind + 0.1 * k)
+        landing = step == steps
+        col = 3 + min(step + 1, steps) % 12  # back and forth along the row on a long mission
+        info = {
+            "budget": 30 - step, "coverage_ratio": 0.01 * step, "rejected": False,
+            "position": (14, col), "landed": landing,
+            "energy_used_j": 480.0 * (step + 1), "state_of_charge": 0.95 - 0.01 * step,
+            "battery_voltage_v": 12.4 - 0.01 * step,
+        }  # fmt: skip
+        action = LAND if landing else EAST
+        rec.log_step(3.0 * (step + 1), action, -0.2, info, np.zeros(256, bool), 14 * 16 + col)
+
+
+def test_recording_holds_the_wind_the_battery_and_each_commanded_waypoint(tmp_path):
+    path = tmp_path / "windy.rrd"
+    rec = MissionRecorder(path, load_map("B"))
+    _log_windy_mission(rec, 3)
+    rec.close()
+    entities = rrd_entities(path)
+    assert "Arrows3D" in entities["/world/wind"]  # the arrow at the UAV
+    assert {"Scalars", "SeriesLines"} <= entities["/metrics/wind"]
+    assert "Points3D" in entities["/world/waypoint"]
+    for metric in ("energy_j", "state_of_charge", "battery_voltage_v"):
+        assert "Scalars" in entities[f"/metrics/{metric}"]
+    text = rrd_print(path)
+    assert "[east, north, speed]" in text
+    assert "[-6.0, 0.0, 6.00749" in text  # east, north, speed of the first sample
+    # each waypoint from the moment its action began, over the cell it commanded (14, 4) …;
+    # the landing's on the ground
+    rows = re.findall(r"┆ (P\S+)\s+┆ (\d+)\s+┆ \[\d+\]\s+┆ \[([^\]]+)\]\s+┆ \[\[([^\]]+)\]\]", text)
+    assert rows[0] == ("P0D", "0", "1: east → (14, 4)", "-14.0, -26.0, 6.0")
+    assert rows[1][:3] == ("PT3S", "1", "2: east → (14, 5)")
+    assert rows[-1] == ("PT9S", "3", "4: land → (14, 6)", "-6.0, -26.0, 0.1")
+    for view in ("wind at the UAV (m/s)", "state of charge (0-1)", "battery voltage (V)",
+                 "battery energy used (J)"):  # fmt: skip
+        assert view in text  # the blueprint shows them
+
+
+def test_a_long_mission_needs_no_rrd_optimize(tmp_path):
+    # before: one chunk per entity per flush, so a mission's chunk count grew with its wall
+    # time; a demo mission (two videos rendered alongside) got `rerun rrd stats`' warning.
+    # Here a flush after every one of 60 moves stands in for a long wall time.
+    path = tmp_path / "long_windy.rrd"
+    rec = MissionRecorder(path, load_map("B"), properties={"backend": "mujoco"}, wind=True,
+                          flush_seconds=1e-6)  # fmt: skip
+    _log_windy_mission(rec, 60)
+    recording_id = rec.recording_id
+    rec.close()
+    stats = subprocess.run([RERUN, "rrd", "stats", str(path)], capture_output=True, text=True)
+    assert stats.returncode == 0, stats.stderr
+    assert "rrd optimize" not in stats.stdout + stats.stderr
+    assert "excess:                   0 chunks" in stats.stdout
+    assert rrd_num_chunks(path) <= 60
+    assert {rid for _, rid in rrd_stores(path)} >= {recording_id}  # the same recording
+    entities = rrd_entities(path)  # verified, and everything still in it
+    assert {"/world/wind", "/world/waypoint", "/metrics/wind", "/coverage"} <= set(entities)
+
+
+def test_the_wind_probe_passes_the_wind_through_and_keeps_the_last(tmp_path):
+    from cpp_mujoco.physics.config import PhysicsConfig
+    from cpp_mujoco.physics.wind import Wind
+    from cpp_mujoco.review.recording import WindProbe
+
+    config = PhysicsConfig(wind_speed=6.0, wind_direction=90.0, turbulence="moderate")
+    alone, probed = Wind(config, 0.02), SimpleNamespace(wind=Wind(config, 0.02))
+    probe = WindProbe.attach(probed)
+    assert probed.wind is probe and probe.last is None
+    alone.reset(np.random.default_rng(1))
+    probed.wind.reset(np.random.default_rng(1))  # passed on to the wrapped model
+    for k in range(20):
+        expected = alone.velocity(0.02 * k, (0.1 * k, 0.0, 6.0))
+        assert probed.wind.velocity(0.02 * k, (0.1 * k, 0.0, 6.0)) == expected == probe.last
+    assert probe.axis == alone.axis  # other attributes are the model's

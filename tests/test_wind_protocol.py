@@ -110,5 +110,8 @@ def test_the_wind_sweep_script_writes_its_table_pivot_and_figure(tmp_path):
     assert [r["policy"] for r in pivot] == ["safe-greedy", "safe-greedy + guard"]
     assert all("%" in r["0 m/s"] and "%" in r["3 m/s"] for r in pivot)
     assert (tmp_path / "wind_sweep.png").stat().st_size > 10_000
+    assert all(r["backend"] == "mujoco" for r in pivot)  # each pivot row says what it is
+    page = (tmp_path / "index.html").read_text()  # the folder's page, headed by the command
+    assert "python scripts/wind_sweep.py --maps" in page and 'src="wind_sweep.png"' in page
     with pytest.raises(SystemExit):
         script.main(["--maps", str(png), "--policies", "ddqn[Z]", "--out", str(tmp_path)])

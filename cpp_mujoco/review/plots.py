@@ -20,6 +20,41 @@ from cpp_mujoco.grid.coverage import square_fov_union
 from cpp_mujoco.io import atomic_path
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.review.grid_image import zone_colors
+from cpp_mujoco.review.tables import backend_name
+
+BUDGET_LABEL = "movement budget (actions; in MuJoCo: calm-move energy units)"
+COVERAGE_LABEL = "coverage ratio (share of target cells)"
+LANDING_LABEL = "landing ratio (share of episodes)"
+
+
+def series_label(result: EvaluationResult) -> str:
+    """A curve's name: policy and backend (``ddqn[A] grid``, ``ddqn[A] MuJoCo``), so the grid
+    and the MuJoCo curves of one policy are never two ``ddqn[A]``."""
+    return f"{result.policy_name} {backend_name(result.backend)}"
+
+
+def budgets_text(results: Sequence[EvaluationResult]) -> str:
+    """The budgets flown (``budgets 25..75 step 5``), from the episodes themselves."""
+    values = sorted({int(b) for r in results for b in np.unique(r.budgets)})
+    if len(values) == 1:
+        return f"budget {values[0]}"
+    steps = set(np.diff(values).tolist())
+    step = f" step {steps.pop()}" if len(steps) == 1 else ""
+    return f"budgets {values[0]}..{values[-1]}{step}"
+
+
+def conditions_text(results: Sequence[EvaluationResult]) -> str:
+    """The weather each backend flew in and the budgets, for a title (``MuJoCo: 9 m/s N +
+    moderate turbulence; grid: calm; budgets 25..75 step 5``)."""
+    from cpp_mujoco.review.results import weather
+
+    by_backend: dict[str, set[str]] = {}
+    for r in results:
+        by_backend.setdefault(backend_name(r.backend), set()).add(weather(r))
+    parts = [f"{b}: {', '.join(sorted(w))}" for b, w in by_backend.items()]
+    if len(by_backend) > 1 and len({frozenset(w) for w in by_backend.values()}) == 1:
+        parts = [", ".join(sorted(next(iter(by_backend.values()))))]  # the same weather
+    return "; ".join([*parts, budgets_text(results)])
 
 
 def _save(fig: Figure, path: str | os.PathLike) -> Path:
@@ -104,15 +139,22 @@ def trajectories_figure(
         draw_trajectory(ax, grid_map, result.trajectories[i])
         outcome = "landed" if result.landed[i] else "crashed"
         ax.set_title(
-            f"{result.policy_name}, map {result.map_name}, budget {budget}\n"
+            f"{series_label(result)}, map {result.map_name}, budget {budget}\n"
             f"coverage {result.coverage[i]:.0%}, {result.steps[i]} steps, {outcome}",
             fontsize=9,
         )
+    fig.suptitle(f"start {start}; {conditions_text([result])}", fontsize=9)
     return _save(fig, path)
 
 
 def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike) -> Path:
-    """The paper's Fig. 3: mean coverage ratio per budget, one line per policy, with the bound."""
+    """The paper's Fig. 3 (:func:`coverage_plot`) saved to ``path``."""
+    return _save(coverage_plot(results), path)
+
+
+def coverage_plot(results: Sequence[EvaluationResult]) -> Figure:
+    """Mean coverage ratio per budget, one line per policy and backend, with the bound; the
+    title names the map, the weather of each backend and the budgets."""
     fig = Figure(figsize=(6, 4))
     ax = fig.subplots()
     for result in results:
@@ -120,7 +162,7 @@ def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike
         ax.plot(
             [r["budget"] for r in table],
             [r["coverage_ratio"] for r in table],
-            label=f"{result.policy_name} (land {result.landing_ratio:.1%})",
+            label=f"{series_label(result)} (land {result.landing_ratio:.1%})",
         )
     table = results[0].per_budget
     ax.plot(
@@ -130,39 +172,57 @@ def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike
         lw=1,
         label="upper bound",
     )
-    ax.set_xlabel("movement budget")
-    ax.set_ylabel("coverage ratio")
+    ax.set_xlabel(BUDGET_LABEL)
+    ax.set_ylabel(COVERAGE_LABEL)
     ax.set_ylim(0, 1.05)
-    ax.set_title(f"map {results[0].map_name} ({results[0].backend})")
+    backends = " vs ".join(dict.fromkeys(backend_name(r.backend) for r in results))
+    episodes = "/".join(sorted({str(r.landed.size) for r in results}))
+    ax.set_title(
+        f"map {results[0].map_name} ({backends}, {episodes} episodes per curve)\n"
+        f"{conditions_text(results)}",
+        fontsize=9,
+    )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return fig
 
 
 def wind_sweep_figure(results: Sequence[EvaluationResult], path: str | os.PathLike) -> Path:
-    """Landing and coverage ratio against the steady wind, one line per map and policy (MuJoCo
-    results; the wind and the weather are read from each result's conditions)."""
+    """:func:`wind_sweep_plot` saved to ``path``."""
+    return _save(wind_sweep_plot(results), path)
+
+
+def wind_sweep_plot(results: Sequence[EvaluationResult]) -> Figure:
+    """Landing and coverage ratio against the steady wind, one line per map, policy and backend
+    (the wind and the weather are read from each result's conditions)."""
     from cpp_mujoco.review.results import weather, wind_speed
 
-    fig = Figure(figsize=(11, 4.2))
+    fig = Figure(figsize=(11, 4.4))
     axes = fig.subplots(1, 2)
-    for key in dict.fromkeys((r.map_name, r.policy_name) for r in results):
-        entries = sorted((r for r in results if (r.map_name, r.policy_name) == key), key=wind_speed)
+    keys = dict.fromkeys((r.map_name, r.policy_name, r.backend) for r in results)
+    for key in keys:
+        entries = sorted(
+            (r for r in results if (r.map_name, r.policy_name, r.backend) == key), key=wind_speed
+        )
         winds = [wind_speed(r) for r in entries]
         style = ("o" if key[1].startswith("ddqn") else "s") + (":" if "guard" in key[1] else "-")
-        label = f"map {key[0]}, {key[1]}"
+        label = f"{series_label(entries[0])}, map {key[0]}"
         axes[0].plot(winds, [r.landing_ratio for r in entries], style, label=label)
         axes[1].plot(winds, [r.coverage_ratio for r in entries], style, label=label)
     extras = sorted({weather(r).partition(" + ")[2] for r in results if wind_speed(r)} - {""})
-    extra = f" (above 0: + {', '.join(extras)})" if extras else ""
-    for ax, name in zip(axes, ("landing ratio", "coverage ratio"), strict=True):
-        ax.set_xlabel(f"steady wind, m/s{extra}")
+    extra = f"; above 0: + {', '.join(extras)}" if extras else ""
+    for ax, name in zip(axes, (LANDING_LABEL, COVERAGE_LABEL), strict=True):
+        ax.set_xlabel(f"steady wind (m/s{extra})")
         ax.set_ylabel(name)
         ax.grid(alpha=0.3)
     axes[1].legend(fontsize=7, loc="best")
     episodes = sorted({int(r.landed.size) for r in results})
+    maps = ", ".join(dict.fromkeys(r.map_name for r in results))
+    backends = ", ".join(dict.fromkeys(backend_name(r.backend) for r in results))
     fig.suptitle(
-        f"MuJoCo under wind ({'/'.join(map(str, episodes))} episodes per point; the wind from "
-        "N, E, S and W, the budgets dealt round-robin to them)"
+        f"map {maps}, {backends} under wind: {'/'.join(map(str, episodes))} episodes per point, "
+        f"{budgets_text(results)}\nthe wind from N, E, S and W, the budgets dealt round-robin "
+        "to them",
+        fontsize=10,
     )
-    return _save(fig, path)
+    return fig

@@ -1,15 +1,21 @@
 """Rerun recordings (.rrd) of a mission, for either backend.
 
 What a reviewer sees: the map in 3D (zones in the paper's colours, no-fly volumes), the UAV's
-pose and trajectory, the camera footprint on the ground, the coverage grid over time, the
-onboard camera frames, and energy / budget / reward / coverage (and, in physics, the pack's
-state of charge and terminal voltage) as time series — on a ``sim_time``
-timeline and a ``step`` timeline (one tick per grid action), laid out by a blueprint.
+pose and trajectory, the camera footprint on the ground, the waypoint each action commanded (a
+marker over the cell it goes to, from the moment the action starts), the wind acting on the UAV
+(an arrow at the UAV and east / north / speed series, where the caller passes the wind), the
+coverage grid over time, the onboard camera frames, and budget / reward / coverage and — in
+physics — the battery (energy used, state of charge, terminal voltage) as time series, on a
+``sim_time`` timeline and a ``step`` timeline (one tick per grid action), laid out by a
+blueprint with the battery and wind views (from the start where the caller says they will
+come, else from their first values).
 
 The file is written as the mission goes, in chunks of a few seconds of wall time (one chunk per
 entity per flush: flushing every step made a mission ~1,000 tiny chunks). Closing it — also on
 Ctrl-C or SIGTERM (:mod:`cpp_mujoco.signals`) — writes the footer ``rerun rrd verify`` wants; a
-recording cut by SIGKILL keeps what was flushed and can be repaired (see the README).
+recording cut by SIGKILL keeps what was flushed and can be repaired (see the README). A mission
+closed normally is then compacted (``rerun rrd optimize``, atomically), so its chunk count no
+longer grows with the wall time the flight took and ``rerun rrd stats`` finds nothing to merge.
 Each recording has its own random recording id, so two opened together stay two recordings.
 """
 
@@ -23,23 +29,32 @@ from pathlib import Path
 
 import numpy as np
 import rerun as rr
-import rerun.blueprint as rrb
 
-from cpp_mujoco.grid.actions import ACTION_NAMES
+from cpp_mujoco.grid.actions import ACTION_NAMES, LAND
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.review.grid_image import grid_image, zone_colors
+from cpp_mujoco.review.recording_tools import WindProbe, blueprint, compact
+
+__all__ = ["MissionRecorder", "WindProbe", "batcher_config", "blueprint"]
 
 _WORLD = PhysicsConfig()  # the default scale (a MuJoCo mission passes its own)
 
 NFZ_RGBA = (255, 30, 30, 60)
 FOOTPRINT_RGBA = (255, 220, 0, 255)
 TRAJECTORY_RGBA = (255, 40, 40, 255)
+WAYPOINT_RGBA = (0, 200, 255, 255)
+WIND_RGBA = (60, 120, 255, 255)
+WIND_ARROW_S = 0.5  # arrow length per m/s of wind: 12 m/s is 6 m, 1.5 cells of 4 m
 METRICS = ("energy_j", "budget", "reward", "return", "coverage_ratio")
 # the LiPo pack's series, from the MuJoCo backend's info (the grid has no battery): their views
 # join the blueprint with the first step that carries them, so grid recordings stay as they were
 BATTERY_METRICS = ("state_of_charge", "battery_voltage_v")
+# the wind at the UAV (world frame: x east, y north), m/s; speed is the norm of the 3D vector.
+# One entity with three series: one chunk per flush instead of three
+WIND_SERIES = ("east", "north", "speed")
+WIND_SERIES_RGBA = [(230, 90, 40, 255), (40, 150, 60, 255), (40, 40, 40, 255)]
 APPLICATION_ID = "cpp_mujoco"
 FLUSH_TIMEOUT_S = 30.0  # a flush that has not finished by then has failed
 FLUSH_SECONDS = 5.0  # wall time between flushes: about what a SIGKILL loses of a mission
@@ -54,30 +69,13 @@ def batcher_config(flush_seconds: float = FLUSH_SECONDS) -> rr.ChunkBatcherConfi
     )
 
 
-def blueprint(battery: bool = False) -> rrb.Blueprint:
-    metrics = METRICS + (BATTERY_METRICS if battery else ())
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Spatial3DView(origin="world", name="mission"),
-            rrb.Vertical(
-                rrb.Spatial2DView(origin="camera", name="onboard camera"),
-                rrb.Spatial2DView(origin="coverage", name="coverage grid"),
-            ),
-            rrb.Vertical(
-                *(rrb.TimeSeriesView(origin=f"metrics/{m}", name=m) for m in metrics),
-            ),
-            column_shares=[3, 2, 2],
-        ),
-        rrb.TimePanel(timeline="sim_time"),
-        collapse_panels=True,
-    )
-
-
 class MissionRecorder:
     """Writes one mission to ``path``. Call :meth:`log_pose` at the camera rate,
     :meth:`log_camera` for onboard frames, :meth:`log_step` after every grid action.
     ``properties`` (policy, backend, conditions) are stored with the map's identity as the
-    recording's ``mission`` property."""
+    recording's ``mission`` property. ``battery`` / ``wind``: lay out their views from the
+    start (default: battery for a ``mujoco`` backend); otherwise a view joins the layout when
+    its first value arrives."""
 
     def __init__(
         self,
@@ -88,6 +86,8 @@ class MissionRecorder:
         name: str = "mission",
         flush_seconds: float | None = None,
         properties: dict[str, object] | None = None,
+        battery: bool | None = None,
+        wind: bool = False,
     ):
         self.path = Path(path)
         if self.path.is_dir():
@@ -111,12 +111,25 @@ class MissionRecorder:
         mission = {**identity, **(properties or {})}  # what decided the numbers shown
         self.rec.send_property("mission", rr.AnyValues(**{k: str(v) for k, v in mission.items()}))
         self._flushed = time.monotonic()
-        self.rec.send_blueprint(blueprint())
         self.trajectory: list[np.ndarray] = []
         self.step = 0
         self.total_reward = 0.0
-        self.battery = False  # battery series seen (and their views sent)
+        self.battery = self.wind = False  # their series' styles logged
+        self._views: tuple[bool, bool] | None = None  # (battery, wind) in the sent blueprint
+        if battery is None:  # a MuJoCo mission has a battery: its views from the start
+            battery = (properties or {}).get("backend") == "mujoco"
+        self._show(battery, wind)
+        self._action_start: float | None = None  # sim time the current action began
         self._log_scene()
+
+    def _show(self, battery: bool, wind: bool) -> None:
+        """Send the blueprint with these views, unless the one sent has them already: each
+        send is a few dozen chunks, so a mission whose series are known up front sends one."""
+        views = self._views or (False, False)
+        wanted = (views[0] or battery, views[1] or wind)
+        if wanted != self._views:
+            self._views = wanted
+            self.rec.send_blueprint(blueprint(*wanted))
 
     # ------------------------------------------------------------------ static scene
     def _log_scene(self) -> None:
@@ -172,9 +185,13 @@ class MissionRecorder:
         position: np.ndarray,
         quaternion_wxyz: np.ndarray = (1.0, 0.0, 0.0, 0.0),
         footprint_xy: np.ndarray | None = None,
+        wind: np.ndarray | None = None,
     ) -> None:
-        """The UAV's pose and the camera footprint polygon (k, 2) on the ground."""
+        """The UAV's pose, the camera footprint polygon (k, 2) on the ground and, given
+        ``wind`` (m/s, world frame: x east, y north, z up), the wind arrow and series."""
         self._at(time_s)
+        if self._action_start is None:
+            self._action_start = float(time_s)
         w, x, y, z = (float(v) for v in quaternion_wxyz)
         position = np.asarray(position, dtype=float)
         self.rec.log(
@@ -188,6 +205,26 @@ class MissionRecorder:
             self.rec.log(
                 "world/footprint", rr.LineStrips3D([ring], colors=FOOTPRINT_RGBA, radii=0.06)
             )
+        if wind is not None:
+            self._log_wind(position, np.asarray(wind, dtype=float))
+
+    def _log_wind(self, position: np.ndarray, wind: np.ndarray) -> None:
+        """The wind as an arrow at the UAV and as east / north / speed series."""
+        if not self.wind:
+            self.wind = True
+            self.rec.log(
+                "metrics/wind",
+                rr.SeriesLines(names=WIND_SERIES, colors=WIND_SERIES_RGBA),
+                static=True,
+            )
+            self._show(battery=False, wind=True)
+        self.rec.log(
+            "world/wind",
+            rr.Arrows3D(
+                origins=[position], vectors=[wind * WIND_ARROW_S], colors=WIND_RGBA, radii=0.08
+            ),
+        )
+        self.rec.log("metrics/wind", rr.Scalars([wind[0], wind[1], float(np.linalg.norm(wind))]))
 
     def log_camera(self, time_s: float, image: np.ndarray) -> None:
         self._at(time_s)
@@ -202,7 +239,11 @@ class MissionRecorder:
         coverage: np.ndarray,
         position_cell: int,
     ) -> None:
-        """After a grid action: coverage grid, trajectory so far, metrics, an event line."""
+        """After a grid action: the waypoint it commanded (logged at the time it began),
+        coverage grid, trajectory so far, metrics, an event line. ``position_cell``: the flat
+        cell the action left the UAV at — the commanded cell (the env's safety decision)."""
+        self._log_waypoint(action, info, position_cell)
+        self._action_start = float(time_s)
         self.step += 1
         self._at(time_s)
         self.total_reward += reward
@@ -223,7 +264,7 @@ class MissionRecorder:
             self.battery = True
             for metric in BATTERY_METRICS:
                 self.rec.log(f"metrics/{metric}", rr.SeriesLines(names=metric), static=True)
-            self.rec.send_blueprint(blueprint(battery=True))
+            self._show(battery=True, wind=False)
         if self.battery:
             values.update({m: info.get(m, float("nan")) for m in BATTERY_METRICS})
         for metric, value in values.items():
@@ -240,6 +281,27 @@ class MissionRecorder:
             self._flush()  # to disk now: the batcher's own tick may wait much longer
             self._flushed = time.monotonic()
 
+    def _log_waypoint(self, action: int, info: dict, cell: int) -> None:
+        """A marker over the cell the action commanded — on the ground for a landing — at the
+        sim time the action began, so it shows while the UAV flies there."""
+        row, col = divmod(int(cell), self.map.shape[1])
+        x, y = GridGeometry.of(self.map, self.cell_size).cell_center(row, col)
+        lands = info.get("landed") or (action == LAND and not info.get("rejected"))
+        what = ACTION_NAMES[action] + (" rejected: hold" if info.get("rejected") else "")
+        if info.get("guard_active"):  # the return guard flew its own action instead
+            what = f"guard: home (policy: {what})"
+        self.rec.set_time("sim_time", duration=self._action_start or 0.0)
+        self.rec.set_time("step", sequence=self.step)
+        self.rec.log(
+            "world/waypoint",
+            rr.Points3D(
+                [[x, y, 0.1 if lands else self.altitude]],
+                radii=0.35,
+                colors=WAYPOINT_RGBA,
+                labels=f"{self.step + 1}: {what} → ({row}, {col})",
+            ),
+        )
+
     def close(self, interrupted: str | None = None) -> Path:
         """Flush and write the footer. ``interrupted``: why the mission stopped early; logged as
         the last event, so the recording says it is not the whole mission."""
@@ -253,6 +315,8 @@ class MissionRecorder:
             )
         self._flush()  # a WriteError leaves the stream connected: rerun's disconnect would wait
         self.rec.disconnect()  # forever for a file sink that can no longer write
+        if not interrupted:  # an interrupted run exits now; its file is complete as it is
+            compact(self.path)
         return self.path
 
     def _flush(self) -> None:

@@ -9,6 +9,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 STYLES = ("plain", "markdown")
+BACKEND_NAMES = {"grid": "grid", "mujoco": "MuJoCo"}
+
+
+def backend_name(backend: str) -> str:
+    """How tables, figures and the report name a backend (``grid``, ``MuJoCo``; a comparison
+    ``grid vs mujoco`` part by part), so one backend has one name everywhere."""
+    return " vs ".join(BACKEND_NAMES.get(b, b) for b in str(backend).split(" vs "))
 
 
 def format_table(
