@@ -77,13 +77,17 @@ def _load_agent(spec: str, grid_map):
 
 # ---------------------------------------------------------------------------------------- maps
 def cmd_maps(args) -> None:
+    from cpp_mujoco.map_commands import check_generate_options, cmd_generate
+
+    if check_generate_options(args):
+        return cmd_generate(args)
     from cpp_mujoco.maps import bundled_maps, load_map
     from cpp_mujoco.review.plots import map_figure
     from cpp_mujoco.review.results import file_part
     from cpp_mujoco.review.tables import format_table
 
     grid_maps = [load_map(spec) for spec in args.maps or bundled_maps()]  # all checked first
-    out = out_dir(args.out)
+    out = out_dir(args.out or "out/maps")
     rows = []
     for grid_map in grid_maps:
         path = map_figure(grid_map, out / f"map_{file_part(grid_map.label)}.png")
@@ -148,6 +152,12 @@ def cmd_evaluate(args) -> None:
 
     weather = _wind(args)  # checked before anything is loaded or written
     runtime = _ray_runtime(args)
+    if args.map_set or args.first:
+        from cpp_mujoco.map_commands import cmd_evaluate_map_set
+
+        if not args.map_set:
+            raise ValueError("--first needs --map-set")
+        return cmd_evaluate_map_set(args, PLANNER_NAMES)
     grid_maps = [load_map(spec) for spec in args.map or bundled_maps()]
     for spec in args.agent:
         _check_agent(spec)
@@ -284,15 +294,19 @@ def add_workers_option(p) -> None:
 def add_maps(sub) -> None:
     p = sub.add_parser("maps", help="draw maps as the paper's colour figure and list cell counts")
     p.add_argument("maps", nargs="*", help="bundled names or PNG paths (default: all bundled)")
-    p.add_argument(
-        "--out", default="out/maps", help="folder for the figures (default: %(default)s)"
-    )
+    p.add_argument("--out", help="folder for the figures (default: out/maps) or --generate's maps")
+    from cpp_mujoco.map_commands import add_generate_options
+
+    add_generate_options(p)
     p.set_defaults(func=cmd_maps)
 
 
 def add_evaluate(sub) -> None:
     p = sub.add_parser("evaluate", help="run the paper's protocol for planners and agents")
     p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
+    from cpp_mujoco.map_commands import add_map_set_options
+
+    add_map_set_options(p)
     p.add_argument(
         "--planner", nargs="*", default=[], choices=PLANNER_NAMES,
         help="reference planners (default: all three, when no --agent is given)",
@@ -307,7 +321,8 @@ def add_evaluate(sub) -> None:
     )  # fmt: skip
     p.add_argument(
         "--budget-step", type=int_at_least(1), default=1,
-        help="every n-th budget of 25..75, 75 always included (default: %(default)s, all)",
+        help="every n-th budget of 25..75 (a map set: its size class's), the largest always "
+        "included (default: %(default)s, all)",
     )  # fmt: skip
     add_workers_option(p)
     p.add_argument(

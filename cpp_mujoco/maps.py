@@ -219,3 +219,11 @@ def load_map(source: str | os.PathLike | GridMap) -> GridMap:
         )
     except MapError as e:
         raise MapError(f"{path}: {e}") from e
+
+
+def generate(rng: np.random.Generator, size: int = 16, **options) -> GridMap:
+    """A random valid map: :func:`cpp_mujoco.map_generator.generate` (imported when called, as
+    the generator needs the grid package, which imports this module)."""
+    from cpp_mujoco.map_generator import generate as _generate
+
+    return _generate(rng, size, **options)

@@ -1,0 +1,170 @@
+"""Generated maps on the command line: ``maps --generate`` and ``evaluate --map-set``.
+
+Kept apart from :mod:`cpp_mujoco.commands` (which calls in here) so that each file stays small;
+like every command, these import the numerical modules only when they run.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from cpp_mujoco.commands import _check_agent, int_at_least, out_dir, progress_wanted
+
+DEFAULT_SIZE = 16
+
+
+# ---------------------------------------------------------------------------------- options
+def add_generate_options(p) -> None:
+    p.add_argument(
+        "--generate", type=int_at_least(1), metavar="N",
+        help="write N random maps as PNG files into --out instead of drawing figures",
+    )  # fmt: skip
+    p.add_argument(
+        "--seed", type=int_at_least(0),
+        help="with --generate: the first map's seed; the n-th map is seed + n (default: 0). "
+        "Seeds 1000000..1999999 are the held-out test sets': never train on them",
+    )  # fmt: skip
+    p.add_argument(
+        "--size", type=int_at_least(8),
+        help=f"with --generate: the maps' side, cells (default: {DEFAULT_SIZE})",
+    )  # fmt: skip
+    p.add_argument(
+        "--overwrite", action="store_true",
+        help="with --generate: write into a non-empty --out (maps of the same name are replaced)",
+    )  # fmt: skip
+
+
+def add_map_set_options(p) -> None:
+    p.add_argument(
+        "--map-set", metavar="NAME",
+        help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1), flown on the "
+        "grid with its size class's budgets (16x16: 25..75, 32x32: 50..150)",
+    )  # fmt: skip
+    p.add_argument(
+        "--first", type=int_at_least(1), metavar="N",
+        help="with --map-set: only its first N maps, for a quick look (results say so)",
+    )  # fmt: skip
+
+
+# ---------------------------------------------------------------------------- maps --generate
+def check_generate_options(args) -> bool:
+    """Whether ``maps`` is to generate; a --generate-only option without it is bad input."""
+    if args.generate is None:
+        given = [o for o in ("seed", "size") if getattr(args, o) is not None]
+        given += ["overwrite"] if args.overwrite else []
+        if given:
+            flags = ", ".join("--" + o for o in given)
+            raise ValueError(f"{flags}: only with --generate N")
+        return False
+    if args.maps:
+        raise ValueError("--generate writes new maps; give no map names with it")
+    if args.out is None:
+        raise ValueError("--generate needs --out DIR, the folder for the PNG maps")
+    return True
+
+
+def _claim_folder(path: str, overwrite: bool) -> Path:
+    """The output folder, created; a non-empty one only with ``overwrite``."""
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file, not a folder")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise ValueError(f"--out {out} is not empty; give --overwrite to write into it anyway")
+    out = out_dir(path)
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise OSError(f"cannot write to output folder {out}: permission denied")
+    return out
+
+
+def cmd_generate(args) -> None:
+    """Write ``--generate N`` maps from seeds ``--seed`` on, one line per map."""
+    from cpp_mujoco.map_generator import generate_from_seed
+    from cpp_mujoco.map_sets import HELDOUT_SEEDS
+    from cpp_mujoco.maps import MAX_SIDE
+    from cpp_mujoco.size_classes import budget_range
+
+    size = DEFAULT_SIZE if args.size is None else args.size
+    first = 0 if args.seed is None else args.seed
+    seeds = range(first, first + args.generate)
+    if size > MAX_SIDE:
+        raise ValueError(f"--size {size}: maps are at most {MAX_SIDE} cells a side")
+    out = _claim_folder(args.out, args.overwrite)
+    if seeds.start < HELDOUT_SEEDS.stop and HELDOUT_SEEDS.start < seeds.stop:
+        print(
+            f"warning: seeds {HELDOUT_SEEDS.start}..{HELDOUT_SEEDS.stop - 1} make the held-out "
+            "test maps; do not train on these",
+            file=sys.stderr,
+        )
+    for seed in seeds:
+        grid_map = generate_from_seed(seed, size)
+        path = out / f"{grid_map.name}.png"
+        grid_map.save(path)
+        c = grid_map.counts()
+        yellow = int((grid_map.target & grid_map.nfz).sum())
+        print(
+            f"{grid_map.name}  {size}x{size}  landing {c['landing']}  target {c['target']} "
+            f"({grid_map.target.mean():.0%})  no-fly {c['nfz']}  yellow {yellow}  "
+            f"digest {grid_map.digest}  {path}"
+        )
+    low, high = budget_range(size)
+    print(f"{len(seeds)} maps in {out}/ (size class {size}x{size}: budgets {low}..{high})")
+
+
+# --------------------------------------------------------------------------- evaluate --map-set
+def _set_agent(spec: str, set_name: str, size: int):
+    """A trained agent for a map set: never a per-map agent (the bundled ones, or one trained
+    on a bundled map), which only flies the map it was trained on."""
+    from cpp_mujoco.agent import bundled_agents, load_agent
+    from cpp_mujoco.io import is_path_like
+    from cpp_mujoco.maps import bundled_maps
+
+    _check_agent(spec)
+    per_map = f"agent {spec!r} is a per-map agent"
+    if not is_path_like(spec, ".pt") and spec in bundled_agents():
+        raise ValueError(
+            f"{per_map}: it flies only map {spec.split('-')[0]}, not map set {set_name!r}; "
+            "evaluate planners (--planner) or an agent trained on generated maps there"
+        )
+    agent = load_agent(spec)
+    trained_on = agent.metadata.get("map")
+    if trained_on in bundled_maps():
+        raise ValueError(f"{per_map} (trained on map {trained_on}); it cannot fly {set_name!r}")
+    if tuple(agent.map_shape) != (size, size):
+        h, w = agent.map_shape
+        raise ValueError(
+            f"agent {spec!r} flies {h}x{w} maps; map set {set_name!r} is {size}x{size}"
+        )
+    return agent
+
+
+def cmd_evaluate_map_set(args, planner_names: tuple[str, ...]) -> None:
+    """``evaluate --map-set NAME``: the protocol on every map of the set, a per-map table, the
+    means per policy, and one JSON with all of it."""
+    if args.map:
+        raise ValueError("--map-set replaces --map; give one of them")
+    if args.backend != "grid":
+        raise ValueError("--map-set runs on the grid backend (--backend grid)")
+    from cpp_mujoco.map_sets import load_map_set, map_set_spec
+    from cpp_mujoco.planners import make_planner
+
+    spec = map_set_spec(args.map_set)
+    agents = [(f"ddqn[{a}]", _set_agent(a, spec.name, spec.size)) for a in args.agent]
+    maps = load_map_set(spec.name, first=args.first)
+    names = args.planner or ([] if agents else list(planner_names))
+    policies = [(name, make_planner(name)) for name in names] + agents
+    out = out_dir(args.out)
+    from cpp_mujoco.map_set_eval import evaluate_map_set
+    from cpp_mujoco.review.results import file_part
+
+    result = evaluate_map_set(spec, maps, policies, args.budget_step, progress_wanted(args))
+    per_map, means = result.tables()
+    part = "" if args.first is None else f"_first{args.first}"
+    path = result.to_json(out / f"grid_{file_part(spec.name)}{part}.json")
+    budgets = f"budgets {result.budgets[0]}..{result.budgets[-1]} step {args.budget_step}"
+    print(f"map set {spec.name}: {len(maps)} of {spec.count} maps, {budgets}, grid")
+    print(per_map)
+    print()
+    print(means)
+    print(f"\nresults: {path}")

@@ -1,0 +1,178 @@
+"""The paper's protocol over a map set: how well a policy does on maps it has never seen.
+
+Each map is flown with the protocol of :func:`~cpp_mujoco.evaluate.evaluate` (every landing cell
+× every budget of the set's size class, :func:`~cpp_mujoco.size_classes.budget_range`) on the
+grid. A set's figure for a policy is the mean over its maps of the per-map ratios, so every map
+counts the same whatever its landing zone's size; the ratios pooled over all episodes are
+recorded beside it. The JSON names the set (name, version, how many of its maps), every map
+(name, seed, digest), the policy, backend and budgets, so no number is ambiguous.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cpp_mujoco.evaluate import evaluate, protocol_budgets, split_conditions
+from cpp_mujoco.io import atomic_write_text, json_default
+from cpp_mujoco.map_sets import MapSetSpec
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.size_classes import size_config
+
+_NUMBERS = ("episodes", "landing_ratio", "coverage_ratio", "mean_return", "mean_steps")
+
+
+def _plain(value: Any) -> Any:
+    return json.loads(json.dumps(value, default=json_default))
+
+
+@dataclass
+class MapSetResult:
+    """Per-map, per-policy protocol figures over (the first ``len(maps)`` maps of) a set."""
+
+    spec: MapSetSpec
+    maps: list[GridMap]
+    budgets: list[int]
+    budget_step: int
+    rows: list[dict] = field(default_factory=list)  # one per map and policy
+    backend: str = "grid"
+
+    @property
+    def policies(self) -> list[str]:
+        return list(dict.fromkeys(r["policy"] for r in self.rows))
+
+    def summary(self) -> list[dict]:
+        """One row per policy: the means over the maps, the pooled ratios, the wall time."""
+        out = []
+        for name in self.policies:
+            rows = [r for r in self.rows if r["policy"] == name]
+            episodes = np.array([r["episodes"] for r in rows])
+            landing = np.array([r["landing_ratio"] for r in rows])
+            coverage = np.array([r["coverage_ratio"] for r in rows])
+            out.append(
+                {
+                    "policy": name,
+                    "maps": len(rows),
+                    "episodes": int(episodes.sum()),
+                    "mean_landing_ratio": float(landing.mean()),
+                    "mean_coverage_ratio": float(coverage.mean()),
+                    "min_landing_ratio": float(landing.min()),
+                    "pooled_landing_ratio": float((landing * episodes).sum() / episodes.sum()),
+                    "pooled_coverage_ratio": float((coverage * episodes).sum() / episodes.sum()),
+                    "seconds": float(sum(r["seconds"] for r in rows)),
+                }
+            )
+        return out
+
+    def to_dict(self) -> dict:
+        """The set, the budgets, the conditions every row shares once, the per-policy means, and
+        the rows (map name, seed, digest, policy, numbers, and their own conditions)."""
+        shared, own = split_conditions([_plain(r["conditions"]) for r in self.rows])
+        rows = []
+        for row, conditions in zip(self.rows, own, strict=True):
+            entry = _plain({k: v for k, v in row.items() if k != "conditions"})
+            if conditions:
+                entry["conditions"] = conditions
+            rows.append(entry)
+        return {
+            "map_set": self.spec.identity(len(self.maps)),
+            "backend": self.backend,
+            "budgets": {"min": self.budgets[0], "max": self.budgets[-1], "step": self.budget_step},
+            "mean_is": "the mean over the maps of each map's ratio (every map weighs the same)",
+            "policies": self.summary(),
+            "conditions": shared,
+            "rows": rows,
+        }
+
+    def to_json(self, path: str | Path) -> Path:
+        atomic_write_text(path, json.dumps(self.to_dict(), indent=2, default=json_default))
+        return Path(path)
+
+    def tables(self) -> tuple[str, str]:
+        """(per map: each policy's landing and coverage; per policy: the means over the set)."""
+        from cpp_mujoco.review.tables import format_table
+
+        names = self.policies
+        per_map: dict[str, dict] = {}
+        for r in self.rows:
+            row = per_map.setdefault(
+                r["map"], {"map": r["map"], "digest": r["map_digest"], "landing cells": 0}
+            )
+            row["landing cells"] = r["landing_cells"]
+            row[f"{r['policy']} landing"] = f"{r['landing_ratio']:.2%}"
+            row[f"{r['policy']} coverage"] = f"{r['coverage_ratio']:.2%}"
+        mean = {"map": f"mean of {len(self.maps)}", "digest": "", "landing cells": ""}
+        for s in self.summary():
+            mean[f"{s['policy']} landing"] = f"{s['mean_landing_ratio']:.2%}"
+            mean[f"{s['policy']} coverage"] = f"{s['mean_coverage_ratio']:.2%}"
+        columns = ["map", "digest", "landing cells"]
+        columns += [f"{n} {what}" for n in names for what in ("landing", "coverage")]
+        means = [
+            {
+                "policy": s["policy"],
+                "maps": s["maps"],
+                "episodes": s["episodes"],
+                "mean landing": f"{s['mean_landing_ratio']:.2%}",
+                "mean coverage": f"{s['mean_coverage_ratio']:.2%}",
+                "worst map landing": f"{s['min_landing_ratio']:.2%}",
+                "seconds": f"{s['seconds']:.1f}",
+            }
+            for s in self.summary()
+        ]
+        mean_columns = ["policy", "maps", "episodes", "mean landing", "mean coverage"]
+        return (
+            format_table([*per_map.values(), mean], columns),
+            format_table(means, [*mean_columns, "worst map landing", "seconds"]),
+        )
+
+
+def evaluate_map_set(
+    spec: MapSetSpec,
+    maps: Sequence[GridMap],
+    policies: Sequence[tuple[str, Any]],
+    budget_step: int = 1,
+    progress: bool = False,
+) -> MapSetResult:
+    """Every policy over every map of the set on the grid, with the set's size-class budgets
+    (every ``budget_step``-th, the maximum always included)."""
+    from tqdm import tqdm
+
+    if not maps:
+        raise ValueError(f"map set {spec.name!r}: no maps to evaluate")
+    if len(maps) > spec.count:
+        raise ValueError(f"map set {spec.name!r} has {spec.count} maps, got {len(maps)}")
+    for grid_map, digest in zip(maps, spec.digests, strict=False):
+        if grid_map.digest != digest:  # rows name each map by the set's seed: they must match
+            raise ValueError(f"map {grid_map.label!r} is not the next map of set {spec.name!r}")
+    config = size_config(spec.size)
+    budgets = protocol_budgets(config, step=budget_step)
+    result = MapSetResult(spec, list(maps), budgets, budget_step)
+    total = len(maps) * len(policies)
+    with tqdm(total=total, desc=spec.name, unit="run", disable=not progress) as bar:
+        for name, policy in policies:
+            for grid_map, seed in zip(maps, spec.seeds, strict=False):
+                start = time.perf_counter()
+                r = evaluate(policy, grid_map, budgets=budgets, config=config, policy_name=name)
+                seconds = time.perf_counter() - start
+                summary = r.summary()
+                result.rows.append(
+                    {
+                        "map": grid_map.label,
+                        "seed": seed,
+                        "map_digest": grid_map.digest,
+                        "landing_cells": int(grid_map.landing.sum()),
+                        "policy": name,
+                        "backend": r.backend,
+                        **{k: summary[k] for k in _NUMBERS},
+                        "seconds": seconds,
+                        "conditions": r.conditions,
+                    }
+                )
+                bar.update()
+    return result
