@@ -17,6 +17,7 @@ from __future__ import annotations
 import itertools
 import os
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -75,16 +76,20 @@ def fly_mission(
     onboard_video: str | os.PathLike | None = None,
     image_every: int = 2,
     progress: bool = False,
+    on_chase_frame: Callable[[np.ndarray], None] | None = None,
     **env_kwargs: Any,
 ) -> MissionOutcome:
     """Fly one episode greedily with ``policy`` (anything with batched ``act``).
 
     ``rrd``: write a Rerun recording; ``video`` / ``onboard_video``: MP4s of the chase and the
-    downward camera (MuJoCo only). ``image_every``: log every n-th camera frame to the recording.
+    downward camera with a HUD (MuJoCo only; :mod:`cpp_mujoco.review.flight_review`).
+    ``image_every``: log every n-th camera frame to the recording. ``on_chase_frame``: also gets
+    every HUD-ed chase frame, the last one with the outcome (MuJoCo only).
     ``env_kwargs`` go to the env (``wind_speed=6`` …). ``progress``: a tqdm bar over actions.
     """
     from tqdm import tqdm
 
+    from cpp_mujoco.review.flight_review import ActionTap, FlightReview, outcome_status
     from cpp_mujoco.review.recording import MissionRecorder
 
     grid_map = load_map(map)
@@ -93,14 +98,15 @@ def fly_mission(
     env_id = {"mujoco": "cpp_mujoco/MuJoCo-v0", "grid": "cpp_mujoco/Grid-v0"}.get(backend)
     if env_id is None:
         raise ValueError(f"unknown backend {backend!r}; choose mujoco or grid")
-    if backend == "grid" and (video or onboard_video):
+    if backend == "grid" and (video or onboard_video or on_chase_frame):
         raise ValueError("videos need the mujoco backend")
     env = gym.make(env_id, map=grid_map, **env_kwargs).unwrapped
+    tap = ActionTap(env)  # the HUD names the action being flown
     physics = backend == "mujoco"
     world = env.config if physics else PhysicsConfig()  # the grid is drawn at the default scale
     cell_size, altitude = world.cell_size, world.altitude
     fov = (env.grid_config if physics else env.config).fov_side
-    review: dict[str, Any] = {"recorder": None, "cameras": [], "writers": []}
+    review: dict[str, Any] = {"recorder": None, "cameras": [], "writers": [], "flight": None}
     bar = tqdm(total=budget, desc=f"fly {grid_map.label}", unit="action", disable=not progress)
     count = itertools.count(1)
 
@@ -110,12 +116,16 @@ def fly_mission(
             about = {"policy": policy_name(policy), "backend": backend, "budget": budget,
                      "start": tuple(start), "seed": seed, **env_kwargs}  # fmt: skip
             review["recorder"] = MissionRecorder(
-                rrd, grid_map, cell_size, altitude, properties=about
+                rrd, grid_map, cell_size, altitude, properties=about, wind=physics
             )
         recorder = review["recorder"]
         if physics:  # fills cameras and writers as it opens them, so all get closed
-            _attach_flight_review(env, recorder, video, onboard_video, image_every,
-                                  review["cameras"], review["writers"])  # fmt: skip
+            about = {"map_name": grid_map.label, "policy": policy_name(policy), "budget": budget}
+            review["flight"] = FlightReview(
+                env, recorder, video, onboard_video, image_every, review["cameras"],
+                review["writers"], about=about, tap=tap, on_chase_frame=on_chase_frame,
+            )  # fmt: skip
+            env.flight.on_frame = review["flight"].on_frame
         elif recorder is not None:
             _log_grid_pose(recorder, grid_map, info["position"], cell_size, altitude, 0.0, fov)
 
@@ -133,9 +143,11 @@ def fly_mission(
     wall = time.perf_counter()
     try:
         episode = run_episode(
-            env, policy, seed=seed, options={"start": start, "budget": budget},
+            tap, policy, seed=seed, options={"start": start, "budget": budget},
             on_start=open_review, on_step=log_step,
         )  # fmt: skip
+        if review["flight"] is not None:
+            review["flight"].finish(outcome_status(episode.info))
     except BaseException as exc:
         bar.close()
         files = _finalise(review["recorder"], review["writers"], review["cameras"], _reason(exc))
@@ -206,50 +218,3 @@ def _log_grid_pose(recorder, grid_map, position, cell_size, altitude, time_s, fo
     square = np.array([[x - half, y - half], [x + half, y - half], [x + half, y + half],
                        [x - half, y + half]])  # fmt: skip
     recorder.log_pose(time_s, [x, y, altitude], (1, 0, 0, 0), square)
-
-
-def _attach_flight_review(env, recorder, video, onboard_video, image_every, cameras, writers):
-    """Hook the recorder and the cameras into the flight's camera frames."""
-    from cpp_mujoco.review.rendering import OffscreenCamera, VideoWriter, chase_camera
-    from cpp_mujoco.review.scenery import Scenery
-
-    flight, data, model = env.flight, env.data, env.model
-    fps = env.config.camera_rate
-    scenery = Scenery(env.grid_map, env.config)  # the map's tiles: not in the physics model
-    onboard = None
-    if onboard_video or recorder is not None:
-        onboard = OffscreenCamera(model, camera="quadrotor/downward", decorate=scenery)
-        cameras.append(onboard)
-    chase = None
-    if video:
-        chase = chase_camera(model, scenery=scenery)
-        cameras.append(chase)
-        writers.append(("video", VideoWriter(video, fps=fps)))
-    onboard_writer = None
-    if onboard_video:
-        onboard_writer = VideoWriter(onboard_video, fps=fps)
-        writers.append(("onboard_video", onboard_writer))
-    chase_writer = writers[0][1] if video else None
-    body = flight.params.body_id
-    count = 0
-
-    def on_frame(f) -> None:
-        nonlocal count
-        t = float(data.time)
-        image = None
-        if onboard_writer is not None or (recorder is not None and count % image_every == 0):
-            image = onboard.render(data)
-        if onboard_writer is not None:
-            onboard_writer.write(image)
-        if chase_writer is not None:
-            chase_writer.write(chase.render(data))
-        if recorder is not None:
-            poly = f.last_footprint
-            recorder.log_pose(
-                t, data.xpos[body], data.xquat[body], np.asarray(poly) if poly else None
-            )
-            if count % image_every == 0:
-                recorder.log_camera(t, image)
-        count += 1
-
-    flight.on_frame = on_frame

@@ -54,7 +54,7 @@ def test_tiles_sit_on_the_cell_centres_in_their_zone_colours():
     assert volumes[:, :2].tolist() == [list(xy) for xy in nfz]
     assert half.tolist() == [1.5, 1.5, CONFIG.altitude] and volumes[:, 2].tolist() == [4.5, 4.5]
     assert colour.tolist() == pytest.approx(NFZ_VOLUME_RGBA)
-    assert scenery.geom_count == ODD.landing.size + 2
+    assert scenery.geom_count == ODD.landing.size + 4 + 2  # tiles, the landing kerbs, volumes
 
 
 def test_the_model_carries_its_map(model):

@@ -164,7 +164,8 @@ class MuJoCoEnv(SingleGridEnv):
         if self._camera is None:
             from cpp_mujoco.review.rendering import chase_camera
 
-            self._camera = chase_camera(self.model, *self.render_size)
+            # the coverage row is marked in place by the flight: the seen cells light up live
+            self._camera = chase_camera(self.model, *self.render_size, coverage=self.mdp.coverage)
             # freed at exit too: a GL context left to interpreter teardown fails noisily
             self._free_camera = weakref.finalize(self, self._camera.close)
         return self._camera.render(self.data)

@@ -134,15 +134,19 @@ def configure_gl(backend: str | None = None) -> str:
 
 
 DEFAULT_MAX_GEOM = 10_000  # mujoco.Renderer's own default scene size
+LIGHT_SCALE = 0.6  # diffuse and specular light kept: tiles show their colours, not white
 
 
 class OffscreenCamera:
     """Renders one camera of a model: a named MJCF camera, or a chase camera tracking a body.
 
-    ``decorate`` is called with the ``MjvScene`` after each ``update_scene`` and before the
-    render, to add what the model does not hold — the map's tiles and no-fly volumes
-    (:class:`~cpp_mujoco.review.scenery.Scenery`). Its ``geom_count``, if it has one, is added to
-    the scene's room for geoms.
+    ``decorate(scene, data)`` is called with the ``MjvScene`` and the ``MjData`` after each
+    ``update_scene`` and before the render, to add what the model does not hold — the map's
+    tiles and no-fly volumes (:class:`~cpp_mujoco.review.scenery.Scenery`), the coverage, trail
+    and airframe (:class:`~cpp_mujoco.review.chase.MissionDecor`). Its ``geom_count``, if it has
+    one, is added to the scene's room for geoms. The model's lights are dimmed by
+    ``light_scale`` in the scene (the model is untouched): at full strength the headlight and the
+    sun saturate every light tile to white, and a seen cell could not be drawn lighter.
     """
 
     def __init__(
@@ -157,7 +161,8 @@ class OffscreenCamera:
         distance: float = 12.0,
         elevation: float = -30.0,
         azimuth: float = 135.0,
-        decorate: Callable[[Any], None] | None = None,
+        decorate: Callable[[Any, Any], None] | None = None,
+        light_scale: float = LIGHT_SCALE,
     ):
         import mujoco
 
@@ -183,16 +188,23 @@ class OffscreenCamera:
             cam.distance, cam.elevation, cam.azimuth = distance, elevation, azimuth
             self.camera = cam
         self._flags = (shadows, reflections)
+        self.width, self.height = width, height
         self.decorate = decorate
+        self.light_scale = light_scale
 
     def render(self, data) -> np.ndarray:
         """(H, W, 3) uint8 frame of the current state."""
         import mujoco
 
         self.renderer.update_scene(data, camera=self.camera, scene_option=self.scene_option)
+        scene = self.renderer.scene
+        if self.light_scale != 1.0:  # update_scene remade the lights: scale them afresh
+            for light in scene.lights[: scene.nlight]:
+                light.diffuse = np.asarray(light.diffuse) * self.light_scale
+                light.specular = np.asarray(light.specular) * self.light_scale
         if self.decorate is not None:
-            self.decorate(self.renderer.scene)
-        flags = self.renderer.scene.flags
+            self.decorate(scene, data)
+        flags = scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW], flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (
             self._flags
         )
@@ -205,23 +217,21 @@ class OffscreenCamera:
             pass
 
 
-CHASE_VIEW = {"distance": 16.0, "elevation": -45.0}  # behind and above, the whole 3×3 view
-
-
 def chase_camera(
-    model, width: int = 480, height: int = 360, scenery: Callable[[Any], None] | None = None
+    model,
+    width: int = 512,
+    height: int = 384,
+    scenery: Any = None,
+    coverage: Any = None,
 ) -> OffscreenCamera:
     """The chase camera following the quadrotor (``MuJoCo-v0``'s ``render()``); GL backend as
     :func:`select_gl` chooses, :class:`RenderingError` if it cannot render. ``scenery`` draws the
-    map; None: the map stored in an arena model (:meth:`Scenery.from_model`), if any."""
-    if scenery is None:
-        from cpp_mujoco.review.scenery import Scenery
+    map; None: the map stored in an arena model (:meth:`Scenery.from_model`), if any.
+    ``coverage``: the env's coverage array, read live (seen cells lighter). The camera, its
+    smoothing and what it draws: :func:`cpp_mujoco.review.chase.chase_camera`."""
+    from cpp_mujoco.review.chase import chase_camera as mission_chase_camera
 
-        scenery = Scenery.from_model(model)
-    return OffscreenCamera(
-        model, track_body="quadrotor/core", width=width, height=height, decorate=scenery,
-        **CHASE_VIEW,
-    )  # fmt: skip
+    return mission_chase_camera(model, width, height, scenery=scenery, coverage=coverage)
 
 
 class _Abandoned(BaseException):
