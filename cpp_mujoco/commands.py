@@ -375,7 +375,7 @@ def add_demo(sub) -> None:
     p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
     p.add_argument("--out", default="out/demo", help="folder for results (default: %(default)s)")
     p.add_argument(
-        "--budget-step", type=int_at_least(1), default=5,
+        "--budget-step", type=int_at_least(1), default=10,
         help="MuJoCo protocol: every n-th budget of 25..75, 1 = all (default: %(default)s)",
     )  # fmt: skip
     add_workers_option(p)

@@ -17,6 +17,7 @@ import numpy as np
 from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, bundled_maps, load_map
+from cpp_mujoco.physics.protocol import EPISODES_PER_CHUNK
 from cpp_mujoco.review.results import (
     DEMO_GRID_COLUMNS,
     TRANSFER_COLUMNS,
@@ -34,7 +35,7 @@ __all__ = ["demo_policies", "run_demo"]
 def run_demo(
     out: Path,
     maps: list[str | GridMap] | None = None,
-    budget_step: int = 5,
+    budget_step: int = 10,
     workers: int | None = None,
     progress: bool = False,
     command: str | None = None,
@@ -54,6 +55,9 @@ def run_demo(
     for grid_map in grid_maps:
         label = file_part(grid_map.label)
         policies = demo_policies(grid_map)
+        # one batch flies in this process: starting worker processes for it costs more than it
+        # saves (they import torch and MuJoCo, ≈ 10 s each, for every policy and map)
+        episodes = int(grid_map.landing.sum()) * len(budgets)
         for name, policy in policies:
             safe = file_part(name)
             grid = evaluate(policy, grid_map, policy_name=name, progress=progress)
@@ -61,7 +65,7 @@ def run_demo(
             grid_table.rows.append(protocol_row(grid))
             physics = evaluate(
                 policy, grid_map, backend="mujoco", budgets=budgets, policy_name=name,
-                workers=workers, progress=progress,
+                workers=workers if episodes > EPISODES_PER_CHUNK else 1, progress=progress,
             )  # fmt: skip
             physics.to_json(out / f"mujoco_{label}_{safe}.json")
             grid_same = evaluate(policy, grid_map, budgets=budgets, policy_name=name)
