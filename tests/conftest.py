@@ -1,5 +1,7 @@
 """Fixtures shared by several test modules."""
 
+import os
+
 import pytest
 
 
@@ -12,3 +14,14 @@ def one_thread():
 
     with one_torch_thread():
         yield
+
+
+@pytest.fixture(scope="module")
+def gl():
+    """The backend the first render will choose (``select_gl``); skip where none works."""
+    from cpp_mujoco.review.rendering import GL_BACKENDS, default_gl_backend, gl_works
+
+    backend = os.environ.get("MUJOCO_GL") or default_gl_backend()
+    if backend not in GL_BACKENDS or not gl_works(backend):
+        pytest.skip(f"no offscreen GL here (MUJOCO_GL={backend!r})")
+    return backend

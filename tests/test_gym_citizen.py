@@ -12,7 +12,6 @@ from gymnasium.utils.env_checker import check_env
 import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.grid.vector_env import GridVectorEnv
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.review.rendering import GL_BACKENDS, default_gl_backend, gl_works
 
 SMALL = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="small")
 BAD_ACTIONS = [2.5, 2.0, np.float64(1.0), np.array(2.0), "1", True, np.array([2]), 5, -1, None]
@@ -24,15 +23,6 @@ def physics():
     env = gym.make("cpp_mujoco/MuJoCo-v0", map=SMALL)
     yield env
     env.close()
-
-
-@pytest.fixture(scope="module")
-def gl():
-    """The backend the first render will choose (``select_gl``); skip where none works."""
-    backend = os.environ.get("MUJOCO_GL") or default_gl_backend()
-    if backend not in GL_BACKENDS or not gl_works(backend):
-        pytest.skip(f"no offscreen GL here (MUJOCO_GL={backend!r})")
-    return backend
 
 
 # ----------------------------------------------------------------------------- actions

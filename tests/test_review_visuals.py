@@ -3,7 +3,6 @@ enlarged airframe, the chase camera's smoothing and the HUD — and that none of
 flight. GL tests skip where no offscreen GL works."""
 
 import math
-import os
 
 import mujoco
 import numpy as np
@@ -16,20 +15,10 @@ from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.review.chase import ChaseRig, MissionDecor
 from cpp_mujoco.review.hud import Hud, HudState, hud_lines, view_up_heading, wind_heading
 from cpp_mujoco.review.quadrotor_visual import Airframe
-from cpp_mujoco.review.rendering import GL_BACKENDS, default_gl_backend, gl_works
 from cpp_mujoco.review.scenery import KERB_HALF_WIDTH, Scenery, landing_kerbs
 from cpp_mujoco.review.trail import Trail
 
 SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
-
-
-@pytest.fixture(scope="module")
-def gl():
-    """The backend the first render will choose (``select_gl``); skip where none works."""
-    backend = os.environ.get("MUJOCO_GL") or default_gl_backend()
-    if backend not in GL_BACKENDS or not gl_works(backend):
-        pytest.skip(f"no offscreen GL here (MUJOCO_GL={backend!r})")
-    return backend
 
 
 class _Script:

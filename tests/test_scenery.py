@@ -1,8 +1,6 @@
 """The map's tiles and no-fly volumes as render-time scenery: where and in what colour they are
 drawn, and that rendered frames still show them although the physics model no longer holds them."""
 
-import os
-
 import mujoco
 import numpy as np
 import pytest
@@ -11,7 +9,6 @@ from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
-from cpp_mujoco.review.rendering import GL_BACKENDS, default_gl_backend, gl_works
 from cpp_mujoco.review.scenery import (
     NFZ_VOLUME_RGBA,
     TILE_GAP,
@@ -28,15 +25,6 @@ CONFIG = PhysicsConfig(cell_size=3.0, altitude=4.5)
 @pytest.fixture(scope="module")
 def model():
     return compile_arena(build_arena(ODD, CONFIG))
-
-
-@pytest.fixture(scope="module")
-def gl():
-    """The backend the first render will choose (``select_gl``); skip where none works."""
-    backend = os.environ.get("MUJOCO_GL") or default_gl_backend()
-    if backend not in GL_BACKENDS or not gl_works(backend):
-        pytest.skip(f"no offscreen GL here (MUJOCO_GL={backend!r})")
-    return backend
 
 
 def test_tiles_sit_on_the_cell_centres_in_their_zone_colours():
