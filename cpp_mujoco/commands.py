@@ -135,12 +135,10 @@ def _ray_runtime(args):
         return nullcontext()
     if args.backend != "mujoco":
         raise ValueError("--ray needs --backend mujoco (the grid protocol runs in this process)")
-    from cpp_mujoco.physics.ray_engine import import_ray, ray_runtime
+    from cpp_mujoco.physics.ray_engine import ray_option_error, ray_runtime
 
-    try:
-        import_ray()
-    except ImportError as exc:
-        raise ValueError(str(exc)) from exc
+    if error := ray_option_error(args):
+        raise ValueError(error)
     return ray_runtime(args.ray_address, args.workers)
 
 

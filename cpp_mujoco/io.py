@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import errno
+import json
 import os
 import tempfile
 from collections.abc import Iterator
@@ -122,6 +123,11 @@ class Resolved:
     path: Path
     name: str
     bundled: bool
+
+
+def json_plain(value: Any) -> Any:
+    """``value`` as plain JSON types (what it reads back as after :func:`json_default`)."""
+    return json.loads(json.dumps(value, default=json_default))
 
 
 def is_path_like(spec: str | os.PathLike, suffix: str) -> bool:

@@ -20,16 +20,12 @@ from typing import Any
 import numpy as np
 
 from cpp_mujoco.evaluate import evaluate, protocol_budgets, split_conditions
-from cpp_mujoco.io import atomic_write_text, json_default
+from cpp_mujoco.io import atomic_write_text, json_default, json_plain
 from cpp_mujoco.map_sets import MapSetSpec
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.size_classes import size_config
 
 _NUMBERS = ("episodes", "landing_ratio", "coverage_ratio", "mean_return", "mean_steps")
-
-
-def _plain(value: Any) -> Any:
-    return json.loads(json.dumps(value, default=json_default))
 
 
 @dataclass
@@ -73,10 +69,10 @@ class MapSetResult:
     def to_dict(self) -> dict:
         """The set, the budgets, the conditions every row shares once, the per-policy means, and
         the rows (map name, seed, digest, policy, numbers, and their own conditions)."""
-        shared, own = split_conditions([_plain(r["conditions"]) for r in self.rows])
+        shared, own = split_conditions([json_plain(r["conditions"]) for r in self.rows])
         rows = []
         for row, conditions in zip(self.rows, own, strict=True):
-            entry = _plain({k: v for k, v in row.items() if k != "conditions"})
+            entry = json_plain({k: v for k, v in row.items() if k != "conditions"})
             if conditions:
                 entry["conditions"] = conditions
             rows.append(entry)

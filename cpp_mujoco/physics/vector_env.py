@@ -134,14 +134,16 @@ class MuJoCoVectorEnv(GridVectorEnv):
             self._crash_reason[i] = reason or (BUDGET_EXHAUSTED if out.crashed[i] else None)
         return out
 
+    _NO_STATE = (
+        "a physics env's state is MuJoCo's and its controllers': checkpoint the policy, "
+        "not the physics episode"
+    )
+
     def state_dict(self) -> dict[str, Any]:
-        raise NotImplementedError(
-            "a physics env's state is MuJoCo's and its controllers': checkpoint the policy, "
-            "not the physics episode"
-        )
+        raise NotImplementedError(self._NO_STATE)
 
     def load_state_dict(self, state) -> None:
-        self.state_dict()
+        raise NotImplementedError(self._NO_STATE)
 
     # ------------------------------------------------------------------ views
     def _infos(self) -> dict[str, np.ndarray]:

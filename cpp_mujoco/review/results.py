@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from cpp_mujoco.evaluate import split_conditions
-from cpp_mujoco.io import atomic_write_text, json_default
+from cpp_mujoco.io import atomic_write_text, json_plain
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.review.tables import format_table
 
@@ -254,10 +254,6 @@ def paper_row(agent, greedy, beam) -> dict:
 
 
 # ------------------------------------------------------------------------------------- tables
-def _plain(value: Any) -> Any:
-    return json.loads(json.dumps(value, default=json_default))
-
-
 @dataclass
 class Table:
     """One results table: rows from the builders above and the columns shown of them."""
@@ -272,10 +268,10 @@ class Table:
     def to_dict(self) -> dict:
         """Title, columns, the conditions every row shares, and the rows (cells, map digest,
         policy, backend, raw numbers, and the conditions that differ between rows)."""
-        shared, own = split_conditions([_plain(r.get("conditions") or {}) for r in self.rows])
+        shared, own = split_conditions([json_plain(r.get("conditions") or {}) for r in self.rows])
         rows = []
         for row, conditions in zip(self.rows, own, strict=True):
-            entry = _plain({k: v for k, v in row.items() if k != "conditions"})
+            entry = json_plain({k: v for k, v in row.items() if k != "conditions"})
             if conditions:
                 entry["conditions"] = conditions
             rows.append(entry)
