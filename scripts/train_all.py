@@ -29,9 +29,9 @@ from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
 
 # the wind-robust agents' training: fine-tune the paper agent in winds of 0..12 m/s (20 % calm),
-# own soft-max exploration only (the planners fly as if every action cost one unit)
+# guided by and learning from planners that price moves with the wind (docs/agent.md)
 WIND_OPTIONS = [
-    "--wind-max-speed", "12", "--guide-fraction", "0", "--demo-fraction", "0",
+    "--wind-max-speed", "12", "--guide", "safe-greedy-wind", "--demo-planner", "beam-search-wind",
     "--learning-rate", "0.00025", "--total-updates", "10000",
 ]  # fmt: skip
 

@@ -33,6 +33,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from cpp_mujoco.grid.actions import LAND, NUM_ACTIONS
 from cpp_mujoco.grid.safety import SafetyController
+from cpp_mujoco.grid.way_home import ReturnMargin, correlation_widening
 from cpp_mujoco.grid.wind import KIND_INDEX, wind_costs
 from cpp_mujoco.maps import GridMap
 
@@ -41,29 +42,11 @@ _UNIT_VECTORS = ((0.0, 1.0), (1.0, 0.0), (0.0, -1.0), (-1.0, 0.0))  # (east, nor
 
 
 @dataclass(frozen=True)
-class GuardSettings:
-    """How cautious the guard is (defaults measured: README "Flying in wind")."""
+class GuardSettings(ReturnMargin):
+    """How cautious the guard is: the margin of :class:`ReturnMargin` (shared with the
+    wind-aware planner) and how much the calibration counts against this flight's own moves."""
 
-    # margin: standard deviations of this action and the way home together, and units kept
-    # beyond it and the landing unit — in calm air, and from ``gusty_wind`` m/s of felt wind up
-    # (linear between). Measured: 3σ + 0.1 everywhere left 3 crashes in 616 rated-wind episodes
-    # (single upwind moves in a long Dryden gust cost up to 4.9 units, a tail no Gaussian margin
-    # of the calibrated spread covers); 4σ + 0.3 everywhere lands them all but costs up to
-    # 0.95 points of coverage in calm air, where 3σ + 0.1 costs ≤ 0.12 (README "Flying in wind")
-    sigmas: float = 3.0
-    reserve_units: float = 0.1
-    gusty_sigmas: float = 4.0
-    gusty_reserve_units: float = 0.3
-    gusty_wind: float = 6.0  # m/s: turbulence grows with the wind (MIL-F-8785C: σ ∝ W20)
     prior_weight: float = 3.0  # the calibrated cost of a kind counts as this many flown samples
-
-    def margin(self, wind_speed: float) -> tuple[float, float]:
-        """(standard deviations, reserve units) at a felt wind of ``wind_speed`` m/s."""
-        k = min(max(wind_speed / self.gusty_wind, 0.0), 1.0) if self.gusty_wind > 0 else 1.0
-        return (
-            self.sigmas + k * (self.gusty_sigmas - self.sigmas),
-            self.reserve_units + k * (self.gusty_reserve_units - self.reserve_units),
-        )
 
 
 class ReturnGuard:
@@ -197,7 +180,7 @@ class ReturnGuard:
         nxt, rejected = self.safety.next_cell[cell, action], self.safety.rejected[cell, action]
         mean, var = self.stats(LAND if rejected else action)
         rho = self.prior(LAND)[2]
-        spread = math.sqrt((var + variance[nxt]) * (1.0 + rho) / (1.0 - rho))
+        spread = math.sqrt((var + variance[nxt]) * correlation_widening(rho))
         sigmas, reserve = self.settings.margin(self.wind_estimate()[0])
         needed = mean + dist[nxt] + sigmas * spread
         if remaining_j >= needed + self.unit * (1.0 + reserve):

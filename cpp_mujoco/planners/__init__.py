@@ -3,20 +3,34 @@
 from cpp_mujoco.planners.beam_search import BeamSearchPlanner
 from cpp_mujoco.planners.random_planner import RandomPlanner
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
+from cpp_mujoco.planners.safe_greedy_wind import WindSafeGreedyPlanner
+from cpp_mujoco.planners.wind_demonstrator import WindDemonstrator
 
 PLANNERS = {
     "random": RandomPlanner,
     "safe-greedy": SafeGreedyPlanner,
     "beam-search": BeamSearchPlanner,
+    # for wind (the grid wind option, MuJoCo with wind): priced from the observed wind
+    "safe-greedy-wind": WindSafeGreedyPlanner,
+    "beam-search-wind": WindDemonstrator,
 }
 
 
 def make_planner(name: str):
-    """A reference planner by name (``random``, ``safe-greedy``, ``beam-search``)."""
+    """A reference planner by name (``random``, ``safe-greedy``, ``beam-search``,
+    ``safe-greedy-wind``, ``beam-search-wind``)."""
     try:
         return PLANNERS[name]()
     except KeyError:
         raise ValueError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}") from None
 
 
-__all__ = ["PLANNERS", "BeamSearchPlanner", "RandomPlanner", "SafeGreedyPlanner", "make_planner"]
+__all__ = [
+    "PLANNERS",
+    "BeamSearchPlanner",
+    "RandomPlanner",
+    "SafeGreedyPlanner",
+    "WindDemonstrator",
+    "WindSafeGreedyPlanner",
+    "make_planner",
+]
