@@ -72,11 +72,15 @@ def demo_policies(map: str | GridMap) -> list[tuple[str, object]]:  # noqa: A002
 
 
 def wind_variants(map: str | GridMap, guard: bool = True) -> list[tuple[str, object, bool]]:  # noqa: A002
-    """(name, policy, return guard on) compared in wind: the demo policies, and with ``guard``
-    the paper agent and the planner again flown with the return guard (``name + guard``); a
-    wind-robust agent flies as it is meant to, unguarded."""
+    """(name, policy, return guard on) compared in wind: the demo policies, the safe greedy
+    planner that prices moves with the wind (``safe-greedy-wind``, the wind agents' guide), and
+    with ``guard`` the paper agent and the planner again flown with the return guard
+    (``name + guard``); a wind-robust agent flies as it is meant to, unguarded."""
+    from cpp_mujoco.planners import WindSafeGreedyPlanner
+
     policies = demo_policies(map)
     out = [(name, policy, False) for name, policy in policies]
+    out.append(("safe-greedy-wind", WindSafeGreedyPlanner(), False))
     if guard:
         out += [(f"{n} + guard", p, True) for n, p in policies if not n.startswith("ddqn-wind")]
     return out
