@@ -116,3 +116,34 @@ def test_bad_option_value_names_the_option():
     args = parser.parse_args(["train", "--out", "x", "--eval-every", "0"])
     with pytest.raises(ValueError, match="invalid option: --eval-every must be >= 1, got 0"):
         config_from_args(args)
+
+
+@pytest.mark.parametrize("best_by, kept", [("return", [1, 3]), ("landing", [1, 2])])
+def test_best_pt_keeps_the_evaluation_best_by_return_or_by_landing(
+    tmp_path, monkeypatch, best_by, kept
+):
+    import cpp_mujoco.agent.train as train_module
+
+    cfg = TrainConfig(
+        map="B", min_budget=8, max_budget=16, num_envs=4, threads=1, guide_fraction=0.0,
+        demo_fraction=0.0, best_by=best_by,
+    )  # fmt: skip
+    trainer = Trainer(cfg, tmp_path)
+    evaluations = iter(
+        [
+            {"eval_return": 10.0, "eval_landing": 0.98, "eval_coverage": 0.8},
+            {"eval_return": 5.0, "eval_landing": 1.00, "eval_coverage": 0.7},  # lands every time
+            {"eval_return": 20.0, "eval_landing": 0.99, "eval_coverage": 0.9},  # crashes, covers
+        ]
+    )
+    saved = []
+    monkeypatch.setattr(trainer, "evaluate", lambda full=False: None)
+    monkeypatch.setattr(trainer, "log", lambda res: next(evaluations))
+    monkeypatch.setattr(trainer, "agent_state", lambda: trainer.updates)
+    monkeypatch.setattr(train_module, "atomic_save", lambda state, path: saved.append(state))
+    trainer._bar = type("Bar", (), {"write": staticmethod(lambda text: None)})()
+    for trainer.updates in (1, 2, 3):
+        trainer._evaluate_and_log()
+    assert saved == kept
+    with pytest.raises(ValueError, match="best_by"):
+        TrainConfig(best_by="coverage")

@@ -53,6 +53,7 @@ _HELP = {
     "eval_every": "greedy evaluation (logged, plotted, best.pt) every so many updates",
     "eval_budget_step": "evaluate on every n-th budget (1 = the full protocol)",
     "final_eval": "run the full protocol on the final agent and write final_eval.json",
+    "best_by": "best.pt keeps the evaluation with the highest return or the most landings",
     "checkpoint_every": "save a resumable checkpoint.pt every so many updates",
     "checkpoint_minutes": "also save one every so many minutes of wall time (0 = off)",
     "budget_scale": "network input = budget / this (0 = max-budget)",

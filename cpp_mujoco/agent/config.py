@@ -72,6 +72,10 @@ class TrainConfig:
     # which best.pt is chosen: a subset (every 5th budget) hid crashes at the budgets in between.
     # The final evaluation at the end of a run is always the full protocol, in final_eval.json.
     final_eval: bool = True  # full-protocol evaluation of the final agent → final_eval.json
+    # which evaluation best.pt keeps: "return" = the highest greedy return (the paper's
+    # objective; a crash weighs −150, i.e. on map A less than a point of coverage) or
+    # "landing" = the most landings, then the return (the wind agents' targets put landing first)
+    best_by: str = "return"
     checkpoint_every: int = 2_000  # resumable checkpoint every so many updates
     # … and every so many minutes of wall time (0 = off): a kill -9 loses at most this much
     checkpoint_minutes: float = 5.0
@@ -84,6 +88,8 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         _check_device(self.device)
+        if self.best_by not in ("return", "landing"):
+            raise ValueError(f"best_by must be 'return' or 'landing', got {self.best_by!r}")
         if self.loss not in ("mse", "huber"):
             raise ValueError(f"loss must be 'mse' or 'huber', got {self.loss!r}")
         if self.n_step < 1:

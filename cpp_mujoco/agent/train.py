@@ -345,8 +345,8 @@ class Trainer:
 
     def _evaluate_and_log(self) -> None:
         row = self.log(self.evaluate())
-        # best = highest greedy return (the objective: crashes weigh −150)
-        score = (row["eval_return"], row["eval_landing"])
+        score = (row["eval_return"], row["eval_landing"])  # TrainConfig.best_by
+        score = score[::-1] if self.config.best_by == "landing" else score
         if self.best is None or score > self.best:
             self.best = score
             atomic_save(self.agent_state(), self.out / "best.pt")
