@@ -6,6 +6,7 @@ Ctrl-C and SIGTERM finalise the files being written (exit 130 / 143) and say whi
 Every subcommand is registered the same way: an ``add_*(subparsers)`` function adds its parser
 and sets ``func`` (which returns the exit status, None for 0) — ``maps``, ``evaluate``, ``fly``
 and ``demo`` in :mod:`cpp_mujoco.commands`, ``train`` in :mod:`cpp_mujoco.agent.cli`,
+``train-general`` in :mod:`cpp_mujoco.agent.general_cli`,
 ``benchmark`` in :mod:`cpp_mujoco.benchmark`. Heavy modules (torch, MuJoCo, matplotlib) are
 imported inside the commands, so ``--help`` and ``--version`` answer at once.
 """
@@ -28,23 +29,28 @@ class _Parser(argparse.ArgumentParser):
 
 
 TRAIN_HELP = "train the DDQN agent on a map"
+TRAIN_GENERAL_HELP = "train one DDQN agent for any map on generated maps"
+TRAIN_COMMANDS = ("train", "train-general")  # their options need torch
 
 
 def add_train(sub, options: bool = True) -> None:
-    """``train``'s parser is the agent package's; its options come from ``TrainConfig``, and
-    that package imports torch (seconds), so without ``options`` only its name and help line
-    are registered — enough for every command line that is not a ``train`` command."""
+    """``train``'s and ``train-general``'s parsers are the agent package's; their options come
+    from the training configs, and that package imports torch (seconds), so without ``options``
+    only their names and help lines are registered — enough for every other command line."""
     if options:
         from cpp_mujoco.agent.cli import add_parser
+        from cpp_mujoco.agent.general_cli import add_parser as add_general_parser
 
         add_parser(sub)
+        add_general_parser(sub)
     else:
         sub.add_parser("train", help=TRAIN_HELP)
+        sub.add_parser("train-general", help=TRAIN_GENERAL_HELP)
 
 
 def build_parser(train_options: bool = True) -> argparse.ArgumentParser:
-    """The whole command line; ``train_options=False`` leaves out ``train``'s options (and
-    torch) — :func:`main` does so for every command line without the word ``train``."""
+    """The whole command line; ``train_options=False`` leaves out the training commands'
+    options (and torch) — :func:`main` does so for every command line without one of them."""
     parser = _Parser(
         prog="cpp-mujoco",
         description="UAV coverage path planning under power constraints, on a grid and in MuJoCo.",
@@ -86,7 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     from cpp_mujoco.signals import exit_code, interruptible
 
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = build_parser(train_options="train" in argv).parse_args(argv)
+    train_options = any(word in TRAIN_COMMANDS for word in argv)
+    args = build_parser(train_options=train_options).parse_args(argv)
     own = not getattr(args, "own_signals", False)  # train saves a checkpoint on its own signals
     try:
         if not own:

@@ -67,7 +67,7 @@ def _load_agent(spec: str, grid_map):
     _check_agent(spec)
     agent = load_agent(spec)
     shape = getattr(agent, "map_shape", grid_map.shape)
-    if tuple(shape) != grid_map.shape:
+    if shape is not None and tuple(shape) != grid_map.shape:  # None: a general agent, any size
         raise ValueError(
             f"agent {spec!r} was trained on {shape[0]}x{shape[1]} maps; map {grid_map.label!r} "
             f"is {grid_map.shape[0]}x{grid_map.shape[1]}"

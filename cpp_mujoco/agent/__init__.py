@@ -1,8 +1,10 @@
 """The paper's DDQN agent: network, training, checkpoints and the bundled agents for maps A, B, C.
 
 ``load_agent("A")`` loads the bundled agent for map A; ``load_agent(path)`` any agent or training
-checkpoint. The result acts greedily: ``agent.act(obs) -> int`` for one observation,
-``np.ndarray`` for a batch.
+checkpoint — a per-map agent or a general one (:mod:`cpp_mujoco.agent.general_network`, trained by
+``cpp-mujoco train-general`` on generated maps, flies maps of any size); ``load_agent("general")``
+the bundled general agent, once there is one. The result acts greedily: ``agent.act(obs) -> int``
+for one observation, ``np.ndarray`` for a batch.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from cpp_mujoco.agent.policy import GreedyAgent, MapSizeError
 from cpp_mujoco.io import resolve_named_file
 
 BUNDLED_DIR = Path(__file__).resolve().parent / "bundled"
+GENERAL_AGENT = "general"  # bundled/general.pt: the general agent, once one is trained
 
 
 def bundled_agents() -> list[str]:
@@ -33,6 +36,11 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
     The agent's ``name`` says which: ``ddqn-A`` is the bundled agent, ``ddqn-A (file)`` a user's
     ``A.pt``; ``metadata`` carries ``source`` (the file), ``bundled`` and the file's ``digest``.
     """
+    if os.fspath(name_or_path) == GENERAL_AGENT and not (BUNDLED_DIR / "general.pt").is_file():
+        raise CheckpointError(
+            f"no general agent is bundled yet ({BUNDLED_DIR / 'general.pt'} does not exist): "
+            "train one with `cpp-mujoco train-general --out DIR` and load DIR/best.pt"
+        )
     where = resolve_named_file(
         name_or_path, bundled=BUNDLED_DIR, suffix=".pt", kind="agent", error=CheckpointError
     )
@@ -45,6 +53,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
         name=f"ddqn-{where.name}" if where.bundled else f"ddqn-{where.name} (file)",
         metadata={
             **{k: obj.get(k) for k in ("map", "config", "metrics")},
+            "architecture": obj.get("architecture", "paper"),
             "source": str(where.path),
             "bundled": where.bundled,
             "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
@@ -55,6 +64,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
 __all__ = [
     "BUNDLED_DIR",
     "CheckpointError",
+    "GENERAL_AGENT",
     "GreedyAgent",
     "MapSizeError",
     "QNetwork",

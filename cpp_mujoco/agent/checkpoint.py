@@ -8,6 +8,11 @@ Two kinds share one layout:
   continue a run exactly — target network, optimiser, replay memory, environment state, RNG
   states, counters and the evaluation history.
 
+Either kind holds the paper's per-map network (no ``architecture`` key, as every file before the
+general agent) or, with ``architecture = "general"``, the size-independent
+:class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`, whose ``network_kwargs`` are its
+layer sizes instead of a map size; :func:`network_from_checkpoint` rebuilds either.
+
 Anything else (a folder, another file type, a truncated file, a different map size, NaN/inf
 weights, a non-positive budget scale) raises :class:`CheckpointError` with a message that names the
 file and says what is wrong. Writes go through :mod:`cpp_mujoco.io` (atomic; a full disk is a
@@ -27,6 +32,8 @@ import numpy as np
 import torch
 
 from cpp_mujoco.agent.config import TrainConfig
+from cpp_mujoco.agent.general_network import ARCHITECTURE as GENERAL
+from cpp_mujoco.agent.general_network import GeneralQNetwork, check_general_kwargs
 from cpp_mujoco.agent.network import QNetwork
 from cpp_mujoco.io import atomic_write_bytes
 from cpp_mujoco.maps import MAX_SIDE, GridMap, load_map
@@ -117,7 +124,16 @@ def _check(path: Path, obj: dict) -> None:
         if key not in obj:
             raise CheckpointError(f"{path} lacks {key!r}; the file is incomplete")
     kw = obj["network_kwargs"]
-    if (
+    architecture = obj.get("architecture", "paper")  # files without one hold the paper's net
+    if architecture == GENERAL:
+        problem = check_general_kwargs(kw)
+        if problem:
+            raise CheckpointError(f"{path}: {problem}")
+    elif architecture != "paper":
+        raise CheckpointError(
+            f"{path}: unknown network architecture {architecture!r} (known: paper, {GENERAL})"
+        )
+    elif (
         not isinstance(kw, dict)
         or not {"height", "width"} <= set(kw) <= {"height", "width", "wind_inputs"}
         or not all(type(kw[k]) is int and 1 <= kw[k] <= MAX_SIDE for k in ("height", "width"))
@@ -138,7 +154,8 @@ def _check(path: Path, obj: dict) -> None:
 
 
 def load_checkpoint(path: str | os.PathLike, *, map_shape: tuple[int, int] | None = None) -> dict:
-    """Read and validate a checkpoint; ``map_shape`` (H, W), if given, must match the network's.
+    """Read and validate a checkpoint; ``map_shape`` (H, W), if given, must match the network's
+    (a general network flies any size).
 
     Raises :class:`CheckpointError` naming the file and what is wrong: not a file, not ours,
     truncated, another format version, non-finite weights, a bad budget scale or map size.
@@ -146,7 +163,7 @@ def load_checkpoint(path: str | os.PathLike, *, map_shape: tuple[int, int] | Non
     path = Path(path)
     obj = _read(path)
     _check(path, obj)
-    if map_shape is not None:
+    if map_shape is not None and obj.get("architecture") != GENERAL:  # general: any size
         kw = obj["network_kwargs"]
         got = (kw["height"], kw["width"])
         if got != tuple(map_shape):
@@ -157,9 +174,11 @@ def load_checkpoint(path: str | os.PathLike, *, map_shape: tuple[int, int] | Non
     return obj
 
 
-def network_from_checkpoint(obj: dict, source: str = "checkpoint") -> QNetwork:
+def network_from_checkpoint(obj: dict, source: str = "checkpoint") -> QNetwork | GeneralQNetwork:
+    """The network a checkpoint describes: the paper's, or the general one (``architecture``)."""
+    kind = GeneralQNetwork if obj.get("architecture") == GENERAL else QNetwork
     try:
-        net = QNetwork(**obj["network_kwargs"])
+        net = kind(**obj["network_kwargs"])
         net.load_state_dict(obj["network"])
     except (TypeError, RuntimeError, KeyError) as exc:
         raise CheckpointError(
@@ -180,19 +199,26 @@ def agent_payload(
     """The agent part of a checkpoint (everything ``load_agent`` needs; fp32 weights only).
 
     ``map_digest`` (:attr:`GridMap.digest`) fingerprints the training map's cells, so a resume
-    on an edited map file of the same name is refused instead of silently continuing.
+    on an edited map file of the same name is refused instead of silently continuing. A general
+    network's payload says so (``architecture``) and holds its shape's arguments.
     """
+    if isinstance(network, GeneralQNetwork):
+        shape = {"architecture": GENERAL, "network_kwargs": dict(network.kwargs)}
+    else:  # the paper's: the same keys as before the general network existed
+        shape = {
+            "network_kwargs": {
+                "height": network.height,
+                "width": network.width,
+                **({"wind_inputs": True} if network.wind_inputs else {}),
+            }
+        }
     return {
         "kind": AGENT_KIND,
         "format_version": FORMAT_VERSION,
         "network": {
             k: v.detach().to("cpu", torch.float32).clone() for k, v in network.state_dict().items()
         },
-        "network_kwargs": {
-            "height": network.height,
-            "width": network.width,
-            **({"wind_inputs": True} if network.wind_inputs else {}),
-        },
+        **shape,
         "budget_scale": float(budget_scale),
         "map": map_name,
         "map_digest": map_digest,
@@ -271,7 +297,8 @@ def restore_training_state(trainer, s: dict) -> None:
     venv = t.env.unwrapped
     _load_env_state(venv, s["env"])
     t.obs = {k: v.numpy().copy() for k, v in s["obs"].items()}
-    t.obs["map"] = venv.mdp.observation()["map"]
+    if hasattr(venv, "mdp"):  # the grid env's map: a read-only view of its one map again
+        t.obs["map"] = venv.mdp.observation()["map"]
     t.ep_return = s["ep_return"].numpy().copy()
     t.rng.bit_generator.state = s["rng"]
     t.torch_gen.set_state(s["torch_gen"])
@@ -286,6 +313,8 @@ def restore_training_state(trainer, s: dict) -> None:
 def check_resumable(path: Path, state: dict, config: TrainConfig, grid_map: GridMap) -> None:
     """A resume must continue the same run: the same map cells and the same learning settings
     (only :data:`RESUMABLE_CHANGES` may differ), else :class:`CheckpointError` naming them."""
+    if state.get("architecture") == GENERAL:
+        raise CheckpointError(f"{path} is a general agent's run; resume it with train-general")
     try:
         stored = TrainConfig.from_dict(state["config"])
     except (TypeError, ValueError) as exc:

@@ -38,10 +38,16 @@ class Demonstrations:
 
 
 def record_demonstrations(
-    grid_map: GridMap, config: GridConfig, planner, n_step: int, gamma: float
+    grid_map: GridMap,
+    config: GridConfig,
+    planner,
+    n_step: int,
+    gamma: float,
+    budgets: list[int] | None = None,
 ) -> Demonstrations:
-    """Fly ``planner`` over every (landing cell, budget) pair and keep every transition."""
-    budgets = protocol_budgets(config)
+    """Fly ``planner`` over every (landing cell, budget) pair and keep every transition
+    (``budgets``: default every budget of ``config``; the general agent's pool takes fewer)."""
+    budgets = protocol_budgets(config) if budgets is None else budgets
     k = len(protocol_episodes(grid_map, budgets)[0])
     max_rows = config.max_budget + n_step + 2  # an episode takes at most max_budget steps
     memory = ReplayBuffer(max_rows * k, k, grid_map.layers, n_step, gamma)

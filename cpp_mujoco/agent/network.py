@@ -88,6 +88,11 @@ class QNetwork(nn.Module):
 def check_can_start_from(source: QNetwork, height: int, width: int, wind_inputs: bool) -> None:
     """``ValueError`` unless an H×W network (with or without wind inputs) can start from
     ``source``'s weights (:meth:`QNetwork.load_narrower`): same map size, no inputs it lacks."""
+    if not isinstance(source, QNetwork):
+        raise ValueError(
+            f"cannot start a {height}x{width} per-map network from a {type(source).__name__} "
+            "(a general network's weights have another shape)"
+        )
     if (source.height, source.width) != (height, width):
         raise ValueError(
             f"cannot start a {height}x{width} network from a {source.height}x{source.width} one"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.policy import as_batch
 
@@ -21,7 +22,7 @@ class GreedyAgent:
 
     def __init__(
         self,
-        network: QNetwork,
+        network: QNetwork | GeneralQNetwork,
         budget_scale: float,
         device: str | torch.device = "cpu",
         name: str = "ddqn",
@@ -34,20 +35,25 @@ class GreedyAgent:
         self.metadata = dict(metadata or {})
 
     @property
-    def map_shape(self) -> tuple[int, int]:
+    def map_shape(self) -> tuple[int, int] | None:
+        """The map size the network was built for; None for a network that flies any size
+        (:class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`)."""
+        if getattr(self.network, "any_size", False):
+            return None
         return self.network.height, self.network.width
 
     @torch.no_grad()
     def q_values(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Q-values (N, 5) for a batch of observations."""
         shape = tuple(np.shape(obs["coverage"])[-2:])
-        if shape != self.map_shape:
+        if self.map_shape is not None and shape != self.map_shape:
             raise MapSizeError(
                 f"agent {self.name!r} was trained on {self.map_shape[0]}x{self.map_shape[1]} maps, "
                 f"the observation is {shape[0]}x{shape[1]}"
             )
         n = int(np.shape(obs["coverage"])[0])
-        step = max(1, FORWARD_CELLS // (shape[0] * shape[1]))  # bounds the activations' memory
+        cells = shape[0] * shape[1] if self.map_shape else self.network.input_cells(shape)
+        step = max(1, FORWARD_CELLS // cells)  # bounds the activations' memory
         parts = []
         for lo in range(0, max(n, 1), step):
             part = {k: _rows(k, v, lo, lo + step) for k, v in obs.items()}

@@ -70,9 +70,9 @@ class ReplayBuffer:
         e = rng.integers(self.num_envs, size=batch_size)
         return self.transitions(t, e)
 
-    def transitions(self, t: np.ndarray, e: np.ndarray) -> dict[str, np.ndarray]:
-        """Rows ``t`` of envs ``e`` → n-step transitions: s, a, R = Σ γ^k r_{t+k}, bootstrap
-        state s_{t+n'}, discount γ^{n'} (0 if the window ended in a termination)."""
+    def n_step_window(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Rows ``t`` of envs ``e`` → (R = Σ γ^k r_{t+k}, steps n', alive): the window ends
+        after n_step rows or at the first termination (then not ``alive``)."""
         batch_size = t.size
         ret = np.zeros(batch_size, dtype=np.float32)
         alive = np.ones(batch_size, dtype=bool)  # window not yet ended by a termination
@@ -82,6 +82,12 @@ class ReplayBuffer:
             ret += alive * (self.gamma**k) * self.reward[row, e]
             steps += alive
             alive &= ~self.terminated[row, e]
+        return ret, steps, alive
+
+    def transitions(self, t: np.ndarray, e: np.ndarray) -> dict[str, np.ndarray]:
+        """Rows ``t`` of envs ``e`` → n-step transitions: s, a, R = Σ γ^k r_{t+k}, bootstrap
+        state s_{t+n'}, discount γ^{n'} (0 if the window ended in a termination)."""
+        ret, steps, alive = self.n_step_window(t, e)
         nxt = (t + steps) % self.rows
         return {
             "obs": self._state(t, e),

@@ -1,0 +1,104 @@
+"""The general agent's training configuration: :class:`TrainConfig`'s learning settings plus the
+map pool, the network's shape and the validation maps.
+
+Every learning setting (DDQN, optimiser, guide, demonstrations, schedule) means what it means
+for the per-map agent and is documented in :mod:`cpp_mujoco.agent.config`; the defaults that
+differ here are longer, since the agent must learn a skill instead of one map's tour. Four
+inherited fields are not used: ``map`` (the maps come from the generator), ``min_budget`` and
+``max_budget`` (each map flies its size class's budgets, :func:`size_classes.budget_range`) and
+``init_from``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cpp_mujoco.agent.config import TrainConfig
+from cpp_mujoco.agent.map_pool import TRAIN_SEEDS, VALIDATION_SEEDS, check_seeds
+from cpp_mujoco.map_generator import MIN_SIZE
+from cpp_mujoco.maps import MAX_SIDE
+from cpp_mujoco.size_classes import budget_range
+
+UNUSED = ("map", "min_budget", "max_budget", "init_from")  # inherited, not options here
+NETWORK_FIELDS = ("local_size", "global_size", "conv_filters", "hidden", "num_hidden")
+
+
+@dataclass
+class GeneralTrainConfig(TrainConfig):
+    map: str = "generated"  # unused (see the module docstring)
+    # --- maps ---------------------------------------------------------------------------------
+    sizes: tuple[int, ...] = (16, 32)  # map sides trained together (one size class each)
+    maps_per_size: int = 512  # training maps per size: seeds map_seed .. map_seed + count − 1
+    map_seed: int = 0  # first training seed (training seeds stay below 1,000,000)
+    episodes_per_map: int = 1  # a slot draws a new map after this many episodes (1: every reset)
+    val_maps_per_size: int = 4  # validation maps per size (best.pt is chosen on them)
+    val_seed: int = VALIDATION_SEEDS.start  # first validation seed (2,000,000..2,999,999)
+    # demonstrations fly the first demo_maps_per_size maps of each size (all of them if there
+    # are fewer), every landing cell ×
+    # every demo_budget_step-th budget: about 5 MB a 32×32 map at step 10, 1.5 s of beam search
+    demo_maps_per_size: int = 32
+    demo_budget_step: int = 10
+    final_budget_step: int = 1  # the final evaluation's budget step (1: the full protocol)
+    # --- network (GeneralQNetwork; Theile et al. 2021's values) ----------------------------------
+    local_size: int = 17  # full-resolution crop around the UAV
+    global_size: int = 21  # the centred map pooled to this side (63 → 21: 3×3 cells each)
+    conv_filters: int = 16
+    hidden: int = 256
+    num_hidden: int = 3
+    max_side: int = 0  # the canvas fits maps up to this side (0: the largest of sizes)
+    # --- defaults that differ from the per-map agent's -----------------------------------------
+    buffer_size: int = 200_000  # many maps: a longer memory (≈ 35 MB packed)
+    total_updates: int = 200_000  # a skill, not a tour: a GPU or a long CPU run
+    guide_updates: int = 50_000
+    eval_every: int = 5_000
+    eval_budget_step: int = 5  # validation: every 5th budget of each size class
+    checkpoint_every: int = 5_000
+
+    def __post_init__(self) -> None:
+        if isinstance(self.sizes, (list, int)):  # from a checkpoint or one size
+            self.sizes = tuple(self.sizes) if isinstance(self.sizes, list) else (self.sizes,)
+        super().__post_init__()
+        if not self.sizes or any(
+            type(s) is not int or not MIN_SIZE <= s <= MAX_SIDE for s in self.sizes
+        ):
+            raise ValueError(f"sizes must be map sides in {MIN_SIZE}..{MAX_SIDE}, got {self.sizes}")
+        if len(set(self.sizes)) != len(self.sizes):
+            raise ValueError(f"sizes must not repeat, got {self.sizes}")
+        for name in ("maps_per_size", "episodes_per_map", "val_maps_per_size", "demo_budget_step",
+                     "final_budget_step", *NETWORK_FIELDS):  # fmt: skip
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.demo_maps_per_size < 0:
+            raise ValueError(f"demo_maps_per_size must be >= 0, got {self.demo_maps_per_size}")
+        if self.demo_fraction > 0 and self.demo_maps_per_size == 0:
+            raise ValueError("demo_fraction > 0 needs demo_maps_per_size >= 1")
+        if self.max_side and self.max_side < max(self.sizes):
+            raise ValueError(f"max_side {self.max_side} is smaller than the largest size")
+        if self.local_size % 2 != 1 or min(self.local_size, self.global_size) <= 8:
+            raise ValueError(
+                "local_size must be odd (centred on the UAV) and local_size and global_size "
+                f"above 8 (two 5x5 convolutions), got {self.local_size} and {self.global_size}"
+            )
+        if self.local_size > 2 * self.network_kwargs()["max_side"] - 1:
+            raise ValueError(f"local_size {self.local_size} exceeds the centred map's side")
+        check_seeds(self.map_seed, self.maps_per_size, "training map", TRAIN_SEEDS)
+        check_seeds(self.val_seed, self.val_maps_per_size, "validation map", VALIDATION_SEEDS)
+        if self.wind_max_speed:
+            raise ValueError("the general agent has no wind option yet (wind_max_speed must be 0)")
+        if self.init_from:
+            raise ValueError("the general agent starts from random weights (init_from is unused)")
+
+    @property
+    def input_budget_scale(self) -> float:
+        """budget / this is the network's input; 0 means the largest budget of the sizes."""
+        return float(self.budget_scale or max(budget_range(s)[1] for s in self.sizes))
+
+    @property
+    def demo_maps(self) -> int:
+        """Maps of each size the demonstrations fly."""
+        return min(self.demo_maps_per_size, self.maps_per_size)
+
+    def network_kwargs(self) -> dict:
+        """:class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`'s arguments."""
+        kwargs = {name: getattr(self, name) for name in NETWORK_FIELDS}
+        return {**kwargs, "max_side": self.max_side or max(self.sizes)}

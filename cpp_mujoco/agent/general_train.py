@@ -1,0 +1,223 @@
+"""Training ONE agent for maps it has never seen: the per-map training loop on a pool of maps.
+
+:class:`GeneralTrainer` is the per-map :class:`~cpp_mujoco.agent.train.Trainer` — its
+collection, DDQN updates, guided exploration, DQfD minibatches, schedule, signals and checkpoint
+loop are inherited unchanged — with other parts plugged in:
+
+* the size-independent :class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`;
+* :class:`~cpp_mujoco.agent.multi_map_env.MultiMapVectorEnv`: every slot on its own generated
+  training map, a new one drawn every ``episodes_per_map`` episodes;
+* :class:`~cpp_mujoco.agent.multi_map_replay.MultiMapReplay` (each state's map by index) and
+  demonstrations recorded map by map (:func:`record_pool_demonstrations`);
+* the guide planner map by map (:class:`~cpp_mujoco.agent.map_pool.MapwiseGuide`);
+* greedy evaluation on validation maps of disjoint seeds (:func:`general_eval.validate`): the log,
+  ``best.pt`` and ``final_eval.json`` (which also holds the safe greedy planner's figures).
+
+The run folder is a per-map run's (``checkpoint.pt`` resumable, ``agent.pt``, ``best.pt``,
+``log.csv``, ``training.png``, ``final_eval.json``); its agent files record the architecture, so
+:func:`~cpp_mujoco.agent.load_agent` rebuilds the general network.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from cpp_mujoco.agent.checkpoint import (
+    RESUMABLE_CHANGES,
+    CheckpointError,
+    agent_payload,
+    load_checkpoint,
+)
+from cpp_mujoco.agent.general_config import GeneralTrainConfig
+from cpp_mujoco.agent.general_eval import ValidationResult, validate
+from cpp_mujoco.agent.general_network import ARCHITECTURE, GeneralQNetwork
+from cpp_mujoco.agent.map_pool import MapPool, MapwiseGuide
+from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
+from cpp_mujoco.agent.multi_map_replay import MultiMapReplay, record_pool_demonstrations
+from cpp_mujoco.agent.policy import GreedyAgent
+from cpp_mujoco.agent.run_folder import claim_run_folder
+from cpp_mujoco.agent.threads import ThreadTuner, set_threads
+from cpp_mujoco.agent.train import Trainer
+from cpp_mujoco.planners import make_planner
+from cpp_mujoco.review.training_plot import write_training_log
+
+REFERENCE_PLANNER = "safe-greedy"  # flown on the validation maps beside the final agent
+# a resumed general run may also change these: they schedule it, not what it learns
+GENERAL_RESUMABLE = RESUMABLE_CHANGES | {"final_budget_step"}
+
+
+class GeneralTrainer(Trainer):
+    def __init__(self, config: GeneralTrainConfig, out_dir: str | os.PathLike):
+        # not Trainer.__init__, which builds one map's env, network and memory; the attributes
+        # set here are those the inherited loop reads
+        self.config = c = config
+        self.out = Path(out_dir)
+        self.device = torch.device(c.device)
+        set_threads(c.threads)
+        cores = os.cpu_count() or 1
+        self.tuner = ThreadTuner((1, cores)) if c.threads == 0 and cores > 1 else None
+        self.pool = MapPool.generate(c.sizes, c.maps_per_size, c.map_seed)
+        self.val_pool = MapPool.generate(c.sizes, c.val_maps_per_size, c.val_seed)
+        self.env = MultiMapVectorEnv(self.pool, c.num_envs, c.episodes_per_map)
+        torch.manual_seed(c.seed)
+        self.online = GeneralQNetwork(**c.network_kwargs()).to(self.device)
+        self.target = GeneralQNetwork(**c.network_kwargs()).to(self.device)
+        self.target.load_state_dict(self.online.state_dict())
+        self.optimizer = torch.optim.Adam(
+            self.online.parameters(), lr=c.learning_rate, eps=c.adam_eps
+        )
+        self.replay = MultiMapReplay(c.buffer_size, c.num_envs, self.pool, c.n_step, c.gamma)
+        self.rng = np.random.default_rng(c.seed)
+        self.guide = MapwiseGuide(make_planner(c.guide), self.pool) if c.guide_fraction else None
+        self.demos = None
+        if c.demo_fraction > 0:
+            # the pool holds maps_per_size maps of each size in turn: the first of each size
+            ids = [k * c.maps_per_size + j for k in range(len(c.sizes)) for j in range(c.demo_maps)]
+            self.demos = record_pool_demonstrations(
+                self.pool, ids, make_planner(c.demo_planner), c.n_step, c.gamma,
+                c.demo_budget_step,
+            )  # fmt: skip
+        self.torch_gen = torch.Generator().manual_seed(c.seed)
+        self.obs, _ = self.env.reset(seed=c.seed)
+        self.updates = self.env_steps = self.episodes = 0
+        self.wall_s = 0.0
+        self.update_credit = 0.0
+        self.ep_return = np.zeros(c.num_envs)
+        self.recent = deque(maxlen=200)  # (return, landed, coverage) of finished training episodes
+        self.history: list[dict] = []
+        self.best: tuple[float, float] | None = None
+        self.last_stats = {"loss": float("nan"), "q": float("nan")}
+        self.last_eval: tuple[int, int, ValidationResult] | None = None
+        self.last_save = time.perf_counter()
+
+    @property
+    def label(self) -> str:
+        sizes = "+".join(str(s) for s in self.config.sizes)
+        return f"general ({len(self.pool)} generated maps, sizes {sizes})"
+
+    # ------------------------------------------------------------------ evaluation and logging
+    def agent(self) -> GreedyAgent:
+        return GreedyAgent(
+            self.online, self.config.input_budget_scale, self.device, name="ddqn-general"
+        )
+
+    def evaluate(self, full: bool = False) -> ValidationResult:
+        """Greedy protocol on the validation maps, every ``eval_budget_step``-th budget; the
+        final evaluation (``full``) every ``final_budget_step``-th, with the reference planner."""
+        c = self.config
+        step = c.final_budget_step if full else c.eval_budget_step
+        if self.last_eval is not None and self.last_eval[:2] == (self.updates, step):
+            res = self.last_eval[2]  # these weights were just validated on these budgets
+        else:
+            res = validate(self.agent(), self.val_pool, step)
+            res.conditions = {"validation_maps": self.val_pool.identity(),
+                              "train_maps": self.pool.identity()}  # fmt: skip
+            self.online.train()
+            self.last_eval = (self.updates, step, res)
+        if full and REFERENCE_PLANNER not in res.references:
+            ref = validate(make_planner(REFERENCE_PLANNER), self.val_pool, step)
+            res.references[REFERENCE_PLANNER] = ref.summary()
+        return res
+
+    def log(self, res: ValidationResult) -> dict:
+        """The per-map trainer's row (:meth:`Trainer.log`), under the general agent's title."""
+        now, (t_mark, updates, steps) = time.perf_counter(), self._mark
+        recent = np.array(self.recent, dtype=float) if self.recent else np.full((1, 3), np.nan)
+        row = {
+            "updates": self.updates, "env_steps": self.env_steps, "episodes": self.episodes,
+            "wall_s": round(self.wall_s, 1), "eval_landing": res.landing_ratio,
+            "eval_coverage": res.coverage_ratio, "eval_return": float(res.returns.mean()),
+            "train_return": recent[:, 0].mean(), "train_landing": recent[:, 1].mean(),
+            "train_coverage": recent[:, 2].mean(), **self.last_stats,
+            "updates_per_s": (self.updates - updates) / (now - t_mark),
+            "env_steps_per_s": (self.env_steps - steps) / (now - t_mark),
+        }  # fmt: skip
+        row = {k: int(v) if isinstance(v, (int, np.integer)) else float(v) for k, v in row.items()}
+        self.history.append(row)
+        write_training_log(self.history, self.out, f"DDQN {self.label}")
+        return row
+
+    # ------------------------------------------------------------------ checkpoints
+    def agent_state(self) -> dict:
+        metrics = {
+            k: v
+            for k, v in (self.history[-1] if self.history else {}).items()
+            if isinstance(v, (int, float))
+        }
+        payload = agent_payload(
+            self.online,
+            budget_scale=self.config.input_budget_scale,
+            map_name="generated",
+            config=self.config.to_dict(),
+            metrics=metrics,
+            map_digest=self.pool.digest,
+        )
+        payload["train_maps"] = self.pool.identity()
+        payload["validation_maps"] = self.val_pool.identity()
+        return payload
+
+    def resume(self) -> bool:
+        """Load ``checkpoint.pt`` from the run folder (False if there is none); refuses one of
+        another architecture, map pool or learning settings."""
+        path = self.out / "checkpoint.pt"
+        if not path.exists():
+            return False
+        state = load_checkpoint(path)
+        check_general_resumable(path, state, self.config, self.pool)
+        self.load_state_dict(state)
+        return True
+
+
+def check_general_resumable(
+    path: Path, state: dict, config: GeneralTrainConfig, pool: MapPool
+) -> None:
+    """:class:`CheckpointError` unless ``state`` continues this general run: the general
+    network, the same training maps and the same learning settings (:data:`GENERAL_RESUMABLE`
+    may differ)."""
+    if state.get("architecture") != ARCHITECTURE:
+        raise CheckpointError(f"{path} is a per-map run; resume it with `cpp-mujoco train`")
+    if state.get("map_digest") != pool.digest:
+        raise CheckpointError(
+            f"{path} was trained on another map pool ({state.get('train_maps')}); "
+            f"this run's is {pool.identity()}"
+        )
+    try:
+        stored = GeneralTrainConfig.from_dict(state["config"]).to_dict()
+    except (TypeError, ValueError) as exc:
+        raise CheckpointError(f"{path}: its stored config is invalid ({exc})") from None
+    given = config.to_dict()
+    changed = [
+        f"{k} {stored[k]!r} (stored) vs {given[k]!r} (given)"
+        for k in given
+        if k not in GENERAL_RESUMABLE and given[k] != stored[k]
+    ]
+    if changed:
+        raise CheckpointError(
+            f"{path}: resume with the run's own settings; these differ: {'; '.join(changed)}"
+        )
+
+
+def train_general(
+    config: GeneralTrainConfig,
+    out_dir: str | os.PathLike,
+    *,
+    resume: bool = False,
+    overwrite: bool = False,
+    progress: bool = True,
+) -> GeneralTrainer:
+    """Train (or continue) a general run in ``out_dir``, locked meanwhile, as
+    :func:`~cpp_mujoco.agent.train.train` does for one map; returns the trainer."""
+    with claim_run_folder(out_dir, resume=resume, overwrite=overwrite) as out:
+        trainer = GeneralTrainer(config, out)
+        if resume and trainer.resume():
+            print(f"resuming {out / 'checkpoint.pt'} at update {trainer.updates}")
+        elif resume:
+            print(f"--resume: no checkpoint.pt in {out}; starting a new run there")
+        trainer.run(progress=progress)
+    return trainer

@@ -1,0 +1,148 @@
+"""The generated maps a general agent trains and is validated on, padded to one side.
+
+Seeds decide the maps (:func:`~cpp_mujoco.map_generator.generate_from_seed`), so a pool is its
+sizes, its count per size and its first seed, and a checkpoint can say exactly what it was
+trained on. Three seed ranges never overlap: training draws below 1,000,000, the held-out test
+sets own 1,000,000..1,999,999 (:data:`~cpp_mujoco.map_sets.HELDOUT_SEEDS`) and validation (the
+maps ``best.pt`` is chosen on) owns :data:`VALIDATION_SEEDS` — choosing on the test maps, or
+validating on training maps, would make the reported numbers optimistic.
+
+Maps of different sizes share a minibatch padded to the pool's largest side with no-fly cells
+(:func:`~cpp_mujoco.agent.general_network.pad_grids` says why that changes nothing for the
+network); coverage is stored as packed bits of that padded layout (:meth:`MapPool.grids`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from cpp_mujoco.agent.network import NFZ_CHANNEL
+from cpp_mujoco.grid.mdp import GridConfig
+from cpp_mujoco.map_generator import generate_from_seed
+from cpp_mujoco.map_sets import HELDOUT_SEEDS
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.size_classes import size_config
+
+TRAIN_SEEDS = range(0, 1_000_000)
+VALIDATION_SEEDS = range(2_000_000, 3_000_000)
+
+
+@dataclass
+class MapPool:
+    """Maps with their size-class grid configs; ``layers`` (M,3,side,side) int8 are the maps
+    padded with no-fly cells (bottom and right) to ``side``."""
+
+    maps: list[GridMap]
+    seeds: list[int]
+    side: int
+    configs: list[GridConfig]
+    layers: np.ndarray
+
+    @classmethod
+    def generate(cls, sizes: tuple[int, ...], per_size: int, first_seed: int) -> MapPool:
+        """``per_size`` maps of each size from seeds ``first_seed`` on (the same seeds for
+        every size: a seed gives another map at another size)."""
+        if per_size < 1 or not sizes:
+            raise ValueError(f"a map pool needs sizes and >= 1 map per size, got {per_size}")
+        seeds = [first_seed + i for i in range(per_size)]
+        maps, used = [], []
+        for size in sizes:
+            maps += [generate_from_seed(seed, size) for seed in seeds]
+            used += seeds
+        side = max(sizes)
+        layers = np.zeros((len(maps), 3, side, side), dtype=np.int8)
+        layers[:, NFZ_CHANNEL] = 1
+        for i, grid_map in enumerate(maps):
+            h, w = grid_map.shape
+            layers[i, :, :h, :w] = grid_map.layers
+        layers.flags.writeable = False
+        configs = {size: size_config(size) for size in sizes}
+        return cls(maps, used, side, [configs[max(m.shape)] for m in maps], layers)
+
+    def __len__(self) -> int:
+        return len(self.maps)
+
+    @property
+    def sizes(self) -> list[int]:
+        return sorted({max(m.shape) for m in self.maps})
+
+    @property
+    def digest(self) -> str:
+        """Fingerprint of every map's cells, in order: a resume refuses another pool."""
+        joined = ",".join(m.digest for m in self.maps)
+        return hashlib.sha256(joined.encode()).hexdigest()[:12]
+
+    def identity(self) -> dict:
+        """What a checkpoint or a result records about the pool."""
+        return {
+            "sizes": self.sizes,
+            "maps": len(self),
+            "seeds": [min(self.seeds), max(self.seeds)],
+            "side": self.side,
+            "digest": self.digest,
+        }
+
+    def grids(self, map_index: np.ndarray, coverage_bits: np.ndarray, position: np.ndarray):
+        """(b,5,side,side) float32 network input of stored states: the map's layers, the
+        unpacked coverage (padded layout) and the one-hot ``position`` (flat padded cell)."""
+        b, side = map_index.size, self.side
+        grid = np.empty((b, 5, side, side), dtype=np.float32)
+        grid[:, :3] = self.layers[map_index]
+        cells = side * side
+        grid[:, 3] = np.unpackbits(coverage_bits, axis=-1, count=cells).reshape(b, side, side)
+        pos = np.zeros((b, cells), dtype=np.float32)
+        pos[np.arange(b), position] = 1.0
+        grid[:, 4] = pos.reshape(b, side, side)
+        return grid
+
+
+def check_seeds(first_seed: int, count: int, what: str, allowed: range) -> None:
+    """``ValueError`` unless seeds first_seed..first_seed+count−1 all lie in ``allowed``
+    (:data:`TRAIN_SEEDS` or :data:`VALIDATION_SEEDS`; both avoid the held-out sets)."""
+    last = first_seed + count - 1
+    if first_seed not in allowed or last not in allowed:
+        held = f"; {HELDOUT_SEEDS.start:,}..{HELDOUT_SEEDS.stop - 1:,} are the held-out test sets'"
+        raise ValueError(
+            f"{what} seeds {first_seed}..{last} must lie in {allowed.start:,}.."
+            f"{allowed.stop - 1:,}{held}"
+        )
+
+
+def pad_layout(cells: np.ndarray, shape: tuple[int, int], side: int) -> np.ndarray:
+    """(N, h·w) per-cell values of an h×w map → (N, side·side) in the padded layout."""
+    n = cells.shape[0]
+    out = np.zeros((n, side, side), dtype=cells.dtype)
+    out[:, : shape[0], : shape[1]] = cells.reshape(n, *shape)
+    return out.reshape(n, side * side)
+
+
+def padded_cell(cell: np.ndarray, width: int, side: int) -> np.ndarray:
+    """Flat cell of a ``width``-wide map → flat cell of the padded layout."""
+    row, col = np.divmod(np.asarray(cell), width)
+    return row * side + col
+
+
+class MapwiseGuide:
+    """A reference planner for a batch of padded observations on many maps: the planners
+    read one map per call (the batch's first), so each map's rows go in their own call, cropped
+    back to the map's own size."""
+
+    def __init__(self, planner, pool: MapPool):
+        self.planner, self.pool = planner, pool
+        self.name = getattr(planner, "name", type(planner).__name__)
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        index = np.asarray(obs["map_index"])
+        actions = np.zeros(index.size, dtype=np.int64)
+        for m in np.unique(index):
+            rows = np.flatnonzero(index == m)
+            h, w = self.pool.maps[int(m)].shape
+            part = {}
+            for key, value in obs.items():
+                value = np.asarray(value)[rows]
+                part[key] = value[..., :h, :w] if key in ("map", "coverage", "position") else value
+            actions[rows] = self.planner.act(part)
+        return actions

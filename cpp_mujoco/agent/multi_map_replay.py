@@ -1,0 +1,165 @@
+"""Replay memory and demonstrations over a pool of maps (:class:`MapPool`).
+
+The per-map :class:`ReplayBuffer` stores its one map once. Here every stored state also keeps
+its map's index in the pool, and coverage is kept as packed bits of the pool's padded layout
+(128 bytes a state on 32×32, 8× less than bools), so a 200,000-transition memory takes about
+35 MB. The n-step windows are read exactly as in :class:`ReplayBuffer` (inherited): a window ends
+at a termination, and a slot changes map only when an episode ends, so no window spans two maps.
+
+Demonstrations (DQfD) are recorded map by map with the per-map recorder, then kept compact: each
+recorded state once, and per transition its n-step return, discount and the index of its
+bootstrap state (:func:`record_pool_demonstrations`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from cpp_mujoco.agent.demonstrations import record_demonstrations
+from cpp_mujoco.agent.map_pool import MapPool, pad_layout, padded_cell
+from cpp_mujoco.agent.replay import ReplayBuffer
+from cpp_mujoco.evaluate import protocol_budgets
+
+
+class MultiMapReplay(ReplayBuffer):
+    """:class:`ReplayBuffer` whose rows also hold each state's map (``map_index``)."""
+
+    def __init__(self, capacity: int, num_envs: int, pool: MapPool, n_step: int, gamma: float):
+        # not ReplayBuffer.__init__: that stores one map and unpacked (rows, envs, H·W) coverage
+        self.pool, self.num_envs = pool, num_envs
+        self.rows = max(capacity // num_envs, n_step + 2)
+        self.capacity = self.rows * num_envs
+        self.n_step, self.gamma = n_step, gamma
+        self.height = self.width = pool.side
+        r, n, nbytes = self.rows, num_envs, (pool.side * pool.side + 7) // 8
+        self.map_index = np.zeros((r, n), dtype=np.int32)
+        self.coverage = np.zeros((r, n, nbytes), dtype=np.uint8)  # packed bits
+        self.position = np.zeros((r, n), dtype=np.int64)  # flat cell, padded layout
+        self.budget = np.zeros((r, n), dtype=np.float32)
+        self.wind = np.zeros((r, n, 2), dtype=np.float32)
+        self.action = np.zeros((r, n), dtype=np.int64)
+        self.reward = np.zeros((r, n), dtype=np.float32)
+        self.terminated = np.zeros((r, n), dtype=bool)
+        self.pos = 0
+        self.full = False
+
+    def add(self, obs: dict[str, np.ndarray], action, reward, terminated) -> None:
+        """Store one vector step of padded observations (:class:`MultiMapVectorEnv`)."""
+        t, n = self.pos, self.num_envs
+        self.map_index[t] = np.asarray(obs["map_index"]).reshape(n)
+        self.coverage[t] = np.packbits(np.asarray(obs["coverage"]).reshape(n, -1) != 0, axis=-1)
+        self.position[t] = np.asarray(obs["position"]).reshape(n, -1).argmax(1)
+        self.budget[t] = np.asarray(obs["budget"]).reshape(n)
+        self.wind[t] = np.asarray(obs["wind"]).reshape(n, 2) if "wind" in obs else 0.0
+        self.action[t] = action
+        self.reward[t] = reward
+        self.terminated[t] = terminated
+        self.pos = (t + 1) % self.rows
+        self.full = self.full or self.pos == 0
+
+    def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        grid = self.pool.grids(self.map_index[t, e], self.coverage[t, e], self.position[t, e])
+        return grid, self.budget[t, e][:, None], self.wind[t, e]
+
+    ARRAYS = ("map_index", "coverage", "position", "budget", "wind", "action", "reward",
+              "terminated")  # fmt: skip
+
+    def state_dict(self) -> dict:
+        state = {k: torch.from_numpy(getattr(self, k).copy()) for k in self.ARRAYS}
+        return {**state, "pos": self.pos, "full": self.full}
+
+    def load_state_dict(self, state: dict) -> None:
+        for name in self.ARRAYS:
+            value = state[name].numpy()
+            if value.shape != getattr(self, name).shape:
+                raise ValueError(
+                    f"replay memory {name} {value.shape} != {getattr(self, name).shape}"
+                )
+        for name in self.ARRAYS:
+            getattr(self, name)[:] = state[name].numpy()
+        self.pos, self.full = int(state["pos"]), bool(state["full"])
+
+
+@dataclass
+class PooledDemonstrations:
+    """A planner's transitions on several pool maps: states once, transitions by index."""
+
+    pool: MapPool
+    map_index: np.ndarray  # (S,) states …
+    coverage: np.ndarray  # (S, bytes) packed, padded layout
+    position: np.ndarray  # (S,) flat padded cell
+    budget: np.ndarray  # (S,)
+    wind: np.ndarray  # (S, 2)
+    action: np.ndarray  # (S,) the action taken in state i (transition i starts there)
+    ret: np.ndarray  # (S,) n-step return from state i
+    discount: np.ndarray  # (S,) γ^n', 0 after a termination
+    next_state: np.ndarray  # (S,) bootstrap state's index (itself where discount is 0)
+    landing_ratio: float  # the planner's, mean over the recorded maps
+    coverage_ratio: float
+
+    def __len__(self) -> int:
+        return self.action.size
+
+    def _states(self, i: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        grid = self.pool.grids(self.map_index[i], self.coverage[i], self.position[i])
+        return grid, self.budget[i][:, None], self.wind[i]
+
+    def sample(self, batch_size: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """Uniformly drawn transitions in :meth:`ReplayBuffer.transitions`' layout."""
+        i = rng.integers(len(self), size=batch_size)
+        return {
+            "obs": self._states(i),
+            "action": self.action[i],
+            "return": self.ret[i],
+            "next_obs": self._states(self.next_state[i]),
+            "discount": self.discount[i],
+        }
+
+
+def record_pool_demonstrations(
+    pool: MapPool, map_ids: list[int], planner, n_step: int, gamma: float, budget_step: int = 1
+) -> PooledDemonstrations:
+    """``planner`` over every landing cell × every ``budget_step``-th budget of each map
+    ``map_ids`` of the pool (:func:`record_demonstrations`), kept compact."""
+    parts: dict[str, list[np.ndarray]] = {}
+    landing, coverage = [], []
+    offset = 0
+    for m in map_ids:
+        grid_map, config = pool.maps[m], pool.configs[m]
+        budgets = protocol_budgets(config, budget_step)
+        demo = record_demonstrations(grid_map, config, planner, n_step, gamma, budgets)
+        landing.append(demo.landing_ratio)
+        coverage.append(demo.coverage_ratio)
+        mem, rows, eps = demo.memory, demo.rows, demo.episodes
+        ret, steps, alive = mem.n_step_window(rows, eps)
+        lookup = np.full((mem.rows, mem.num_envs), -1, dtype=np.int64)
+        lookup[rows, eps] = np.arange(rows.size) + offset
+        nxt = lookup[(rows + steps) % mem.rows, eps]
+        if (nxt[alive] < 0).any():
+            raise RuntimeError(f"demonstrations on {grid_map.label}: a bootstrap state is missing")
+        h, w = grid_map.shape
+        cells = pad_layout(mem.coverage[rows, eps], (h, w), pool.side)
+        new = {
+            "map_index": np.full(rows.size, m, dtype=np.int32),
+            "coverage": np.packbits(cells, axis=-1),
+            "position": padded_cell(mem.position[rows, eps], w, pool.side),
+            "budget": mem.budget[rows, eps],
+            "wind": mem.wind[rows, eps],
+            "action": mem.action[rows, eps],
+            "ret": ret,
+            "discount": np.where(alive, gamma**steps, 0.0).astype(np.float32),
+            "next_state": np.where(alive, nxt, np.arange(rows.size) + offset),
+        }
+        for key, value in new.items():
+            parts.setdefault(key, []).append(value)
+        offset += rows.size
+    arrays = {k: np.concatenate(v) for k, v in parts.items()}
+    return PooledDemonstrations(
+        pool,
+        **arrays,
+        landing_ratio=float(np.mean(landing)),
+        coverage_ratio=float(np.mean(coverage)),
+    )
