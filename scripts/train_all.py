@@ -3,9 +3,10 @@
     python scripts/train_all.py --out runs/bundled [--maps A B C] [--minutes 20] [--install]
     python scripts/train_all.py --wind --out runs/wind [--install]     # A-wind, B-wind, C-wind
 
-``--wind`` trains the wind-robust agents: each starts from the map's bundled paper agent and
-learns in the grid's wind option (:data:`WIND_OPTIONS`, ``docs/agent.md``); ``--install`` then
-writes ``M-wind.pt``.
+``--wind`` trains the wind-robust agents in two runs per map (:data:`WIND_STAGES`,
+``docs/agent.md``): ``OUT/M-stage1`` starts from the map's bundled paper agent and learns in the
+grid's wind option, ``OUT/M`` continues from its final agent; ``--install`` then writes
+``M-wind.pt`` from ``OUT/M/best.pt``.
 
 Each map runs ``cpp-mujoco train --map M --seed 0 --out OUT/M --max-minutes MIN`` (through the same
 argparse handler), then evaluates ``best.pt`` on the full protocol; ``--install`` copies it to
@@ -28,11 +29,21 @@ from cpp_mujoco.cli import main as train_main  # the `cpp-mujoco` command itself
 from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
 
-# the wind-robust agents' training: fine-tune the paper agent in winds of 0..12 m/s (20 % calm),
-# guided by and learning from planners that price moves with the wind (docs/agent.md)
-WIND_OPTIONS = [
-    "--wind-max-speed", "12", "--guide", "safe-greedy-wind", "--demo-planner", "beam-search-wind",
-    "--learning-rate", "0.00025", "--total-updates", "10000",
+# the wind-robust agents' training, two runs per map (docs/agent.md): fine-tune the paper agent
+# in winds of 0..12 m/s (20 % calm), guided by and learning from planners that price moves with
+# the wind; then continue from its final agent with more calm air, a lower learning rate and
+# best.pt chosen by landings
+WIND_STAGES = [
+    ("stage1", [
+        "--wind-max-speed", "12", "--guide", "safe-greedy-wind",
+        "--demo-planner", "beam-search-wind", "--learning-rate", "0.00025",
+        "--total-updates", "10000", "--init-from", "{paper}",
+    ]),
+    ("", [
+        "--wind-max-speed", "12", "--wind-calm-fraction", "0.35", "--guide", "safe-greedy-wind",
+        "--demo-planner", "beam-search-wind", "--learning-rate", "0.00015",
+        "--total-updates", "6000", "--best-by", "landing", "--init-from", "{stage1}/agent.pt",
+    ]),
 ]  # fmt: skip
 
 
@@ -78,17 +89,27 @@ def main(argv=None) -> int:
     minutes = args.minutes if args.minutes is not None else (0.0 if args.wind else 20.0)
     for m in args.maps:
         out = Path(args.out) / m
-        cmd = ["train", "--map", m, "--seed", str(args.seed), "--out", str(out)]
-        if args.wind:
-            cmd += [*WIND_OPTIONS, "--init-from", m]
-        cmd += ["--max-minutes", str(minutes), "--no-progress", *args.extra]
-        if (out / "checkpoint.pt").exists() and "--overwrite" not in args.extra:
-            cmd.append("--resume")
         t0 = time.time()
-        code = _train(cmd)
-        if code != 0:  # a refused folder or a bad option must not fall through to a stale best.pt
-            print(_stopped(m, out, code, argv), file=sys.stderr)
-            return code
+        runs = [(out, [])]  # (folder, options) of each run of this map; the last one is kept
+        if args.wind:
+            stage = {"paper": m, "stage1": str(Path(args.out) / f"{m}-stage1")}
+            runs = [
+                (Path(args.out) / f"{m}-{suffix}" if suffix else out,
+                 [o.format(**stage) for o in options])
+                for suffix, options in WIND_STAGES
+            ]  # fmt: skip
+        for i, (folder, options) in enumerate(runs):  # run i is seeded seed + i
+            seed = str(args.seed + i)
+            cmd = ["train", "--map", m, "--seed", seed, "--out", str(folder), *options]
+            cmd += ["--max-minutes", str(minutes), "--no-progress", *args.extra]
+            if (folder / "checkpoint.pt").exists() and "--overwrite" not in args.extra:
+                if folder != out and (folder / "final_eval.json").exists():
+                    continue  # an earlier stage that finished: its agent.pt is the next start
+                cmd.append("--resume")
+            code = _train(cmd)
+            if code != 0:  # a refused folder or a bad option must not fall through to a stale best
+                print(_stopped(m, folder, code, argv), file=sys.stderr)
+                return code
         if not (out / "best.pt").is_file():  # no evaluation ran: nothing was selected
             print(
                 f"train_all: {out / 'best.pt'} is missing: the run ended before its first "
@@ -98,7 +119,7 @@ def main(argv=None) -> int:
             return 1
         res = evaluate(load_agent(out / "best.pt"), m)
         summary[m] = {
-            "command": "cpp-mujoco " + " ".join(cmd),
+            "command": "cpp-mujoco " + " ".join(cmd),  # the last run's
             "wall_s": round(time.time() - t0, 1),
             "evaluated_on": "the full protocol on the grid, calm air (the paper's MDP)",
             "landing_ratio": res.landing_ratio,

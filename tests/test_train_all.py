@@ -47,3 +47,30 @@ def test_run_without_an_evaluation_stops_with_a_message(tmp_path, capsys):
     assert code == 1 and "best.pt is missing" in err and "--minutes" in err
     assert (tmp_path / "A" / "checkpoint.pt").is_file()  # the run itself is resumable
     assert not (tmp_path / "summary.json").exists()
+
+
+def test_wind_agents_train_in_two_runs_the_second_from_the_first(tmp_path, monkeypatch):
+    module = _train_all()
+    calls = []
+
+    def fake_train(cmd):  # stands in for `cpp-mujoco train`: records and leaves a finished run
+        calls.append(cmd)
+        out = Path(cmd[cmd.index("--out") + 1])
+        out.mkdir(parents=True, exist_ok=True)
+        for name in ("checkpoint.pt", "final_eval.json"):
+            (out / name).write_text("")
+        shutil.copyfile(BUNDLED_DIR / "B-wind.pt", out / "best.pt")
+        return 0
+
+    monkeypatch.setattr(module, "_train", fake_train)
+    assert module.main(["--wind", "--out", str(tmp_path), "--maps", "B"]) == 0
+    first, second = calls
+    assert first[first.index("--out") + 1] == str(tmp_path / "B-stage1")
+    assert first[first.index("--init-from") + 1] == "B"  # the paper agent
+    assert second[second.index("--out") + 1] == str(tmp_path / "B")
+    assert second[second.index("--init-from") + 1] == str(tmp_path / "B-stage1" / "agent.pt")
+    assert (first[first.index("--seed") + 1], second[second.index("--seed") + 1]) == ("0", "1")
+    assert second[second.index("--best-by") + 1] == "landing"
+    calls.clear()  # run again: the finished first run is kept, the second is resumed
+    assert module.main(["--wind", "--out", str(tmp_path), "--maps", "B"]) == 0
+    assert len(calls) == 1 and "--resume" in calls[0] and str(tmp_path / "B") in calls[0]
