@@ -11,7 +11,11 @@ import argparse
 import sys
 from pathlib import Path
 
-PLANNER_NAMES = ("random", "safe-greedy", "beam-search")
+# the reference planners (cpp_mujoco.planners.PLANNERS, named here for the parser; a test keeps
+# them equal); evaluate flies the first three when no policy is named — the wind planners price
+# moves with the observed wind and are asked for by name
+PLANNER_NAMES = ("random", "safe-greedy", "beam-search", "safe-greedy-wind", "beam-search-wind")
+DEFAULT_PLANNERS = PLANNER_NAMES[:3]
 # Dryden turbulence levels (MIL-F-8785C), the same as cpp_mujoco.physics.turbulence.LEVELS; named
 # here so that building the parser imports no numerical module (a test keeps them equal)
 TURBULENCE_LEVELS = ("none", "light", "moderate", "severe")
@@ -155,12 +159,12 @@ def cmd_evaluate(args) -> None:
 
         if not args.map_set:
             raise ValueError("--first needs --map-set")
-        return cmd_evaluate_map_set(args, PLANNER_NAMES)
+        return cmd_evaluate_map_set(args, DEFAULT_PLANNERS)
     grid_maps = [load_map(spec) for spec in args.map or bundled_maps()]
     for spec in args.agent:
         _check_agent(spec)
     if not args.planner and not args.agent:
-        args.planner = list(PLANNER_NAMES)
+        args.planner = list(DEFAULT_PLANNERS)
     policies = [(name, make_planner(name)) for name in args.planner]
     if args.agent:
         from cpp_mujoco.agent import load_agent

@@ -181,6 +181,13 @@ def test_turbulence_levels_are_the_models():
     assert TURBULENCE_LEVELS == LEVELS
 
 
+def test_the_parsers_planner_names_are_the_planners():
+    from cpp_mujoco.commands import PLANNER_NAMES
+    from cpp_mujoco.planners import PLANNERS
+
+    assert PLANNER_NAMES == tuple(PLANNERS)
+
+
 def test_evaluate_in_mujoco_records_the_turbulence_it_flew(tmp_path, capsys, monkeypatch):
     import cpp_mujoco.evaluate as evaluate_module
 
