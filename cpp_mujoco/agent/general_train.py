@@ -45,7 +45,6 @@ from cpp_mujoco.agent.run_folder import claim_run_folder
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.planners import make_planner
-from cpp_mujoco.review.training_plot import write_training_log
 
 REFERENCE_PLANNER = "safe-greedy"  # flown on the validation maps beside the final agent
 # a resumed general run may also change these: they schedule it, not what it learns
@@ -125,23 +124,9 @@ class GeneralTrainer(Trainer):
             res.references[REFERENCE_PLANNER] = ref.summary()
         return res
 
-    def log(self, res: ValidationResult) -> dict:
-        """The per-map trainer's row (:meth:`Trainer.log`), under the general agent's title."""
-        now, (t_mark, updates, steps) = time.perf_counter(), self._mark
-        recent = np.array(self.recent, dtype=float) if self.recent else np.full((1, 3), np.nan)
-        row = {
-            "updates": self.updates, "env_steps": self.env_steps, "episodes": self.episodes,
-            "wall_s": round(self.wall_s, 1), "eval_landing": res.landing_ratio,
-            "eval_coverage": res.coverage_ratio, "eval_return": float(res.returns.mean()),
-            "train_return": recent[:, 0].mean(), "train_landing": recent[:, 1].mean(),
-            "train_coverage": recent[:, 2].mean(), **self.last_stats,
-            "updates_per_s": (self.updates - updates) / (now - t_mark),
-            "env_steps_per_s": (self.env_steps - steps) / (now - t_mark),
-        }  # fmt: skip
-        row = {k: int(v) if isinstance(v, (int, np.integer)) else float(v) for k, v in row.items()}
-        self.history.append(row)
-        write_training_log(self.history, self.out, f"DDQN {self.label}")
-        return row
+    def log_title(self) -> str:
+        """:meth:`Trainer.log`'s row, under the general agent's title."""
+        return f"DDQN {self.label}"
 
     # ------------------------------------------------------------------ checkpoints
     def agent_state(self) -> dict:

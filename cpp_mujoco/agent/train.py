@@ -235,8 +235,11 @@ class Trainer:
             k: (int(v) if isinstance(v, (int, np.integer)) else float(v)) for k, v in row.items()
         }
         self.history.append(row)
-        write_training_log(self.history, self.out, f"DDQN training on map {self.grid_map.label}")
+        write_training_log(self.history, self.out, self.log_title())
         return row
+
+    def log_title(self) -> str:
+        return f"DDQN training on map {self.grid_map.label}"
 
     # ------------------------------------------------------------------ checkpoints
     def agent_state(self) -> dict:
