@@ -150,7 +150,7 @@ def resume_command(args: argparse.Namespace) -> str:
 def run_train(args: argparse.Namespace) -> int:
     from cpp_mujoco.agent.checkpoint import CheckpointError
     from cpp_mujoco.agent.run_folder import TrainingInterrupted
-    from cpp_mujoco.agent.train import train
+    from cpp_mujoco.agent.training_run import train
     from cpp_mujoco.maps import MapError
 
     progress = not args.no_progress and sys.stderr.isatty()

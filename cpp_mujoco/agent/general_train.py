@@ -197,7 +197,7 @@ def train_general(
     progress: bool = True,
 ) -> GeneralTrainer:
     """Train (or continue) a general run in ``out_dir``, locked meanwhile, as
-    :func:`~cpp_mujoco.agent.train.train` does for one map; returns the trainer."""
+    :func:`~cpp_mujoco.agent.training_run.train` does for one map; returns the trainer."""
     with claim_run_folder(out_dir, resume=resume, overwrite=overwrite) as out:
         trainer = GeneralTrainer(config, out)
         if resume and trainer.resume():

@@ -46,19 +46,11 @@ class MultiMapReplay(ReplayBuffer):
         self.pos = 0
         self.full = False
 
-    def add(self, obs: dict[str, np.ndarray], action, reward, terminated) -> None:
-        """Store one vector step of padded observations (:class:`MultiMapVectorEnv`)."""
-        t, n = self.pos, self.num_envs
+    def _store_coverage(self, t: int, obs: dict[str, np.ndarray]) -> None:
+        """Row ``t``'s map index and coverage as packed bits of the padded layout."""
+        n = self.num_envs
         self.map_index[t] = np.asarray(obs["map_index"]).reshape(n)
         self.coverage[t] = np.packbits(np.asarray(obs["coverage"]).reshape(n, -1) != 0, axis=-1)
-        self.position[t] = np.asarray(obs["position"]).reshape(n, -1).argmax(1)
-        self.budget[t] = np.asarray(obs["budget"]).reshape(n)
-        self.wind[t] = np.asarray(obs["wind"]).reshape(n, 2) if "wind" in obs else 0.0
-        self.action[t] = action
-        self.reward[t] = reward
-        self.terminated[t] = terminated
-        self.pos = (t + 1) % self.rows
-        self.full = self.full or self.pos == 0
 
     def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         grid = self.pool.grids(self.map_index[t, e], self.coverage[t, e], self.position[t, e])

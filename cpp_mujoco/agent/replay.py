@@ -43,7 +43,7 @@ class ReplayBuffer:
     def add(self, obs: dict[str, np.ndarray], action, reward, terminated) -> None:
         """Store one vector step: ``obs`` is the batched observation the actions were taken in."""
         t, n = self.pos, self.num_envs
-        self.coverage[t] = np.asarray(obs["coverage"]).reshape(n, -1).astype(bool)
+        self._store_coverage(t, obs)
         self.position[t] = np.asarray(obs["position"]).reshape(n, -1).argmax(1)
         self.budget[t] = np.asarray(obs["budget"]).reshape(n)
         self.wind[t] = np.asarray(obs["wind"]).reshape(n, 2) if "wind" in obs else 0.0
@@ -52,6 +52,10 @@ class ReplayBuffer:
         self.terminated[t] = terminated
         self.pos = (t + 1) % self.rows
         self.full = self.full or self.pos == 0
+
+    def _store_coverage(self, t: int, obs: dict[str, np.ndarray]) -> None:
+        """Row ``t``'s coverage, one bool per cell (subclasses keep it in their own layout)."""
+        self.coverage[t] = np.asarray(obs["coverage"]).reshape(self.num_envs, -1).astype(bool)
 
     def _valid_rows(self) -> int:
         """Number of sampleable rows: all stored rows but the newest n_step."""
@@ -134,3 +138,14 @@ class ReplayBuffer:
         # a checkpoint from before the wind option held calm-air observations only
         self.wind[:] = state["wind"].numpy() if "wind" in state else 0.0
         self.pos, self.full = int(state["pos"]), bool(state["full"])
+
+
+def concatenate_batches(a: dict, b: dict) -> dict:
+    """Two sampled batches as one, field by field (``obs``/``next_obs`` are tuples of arrays)."""
+    out = {}
+    for k, v in a.items():
+        if isinstance(v, tuple):
+            out[k] = tuple(np.concatenate([x, y]) for x, y in zip(v, b[k], strict=True))
+        else:
+            out[k] = np.concatenate([v, b[k]])
+    return out

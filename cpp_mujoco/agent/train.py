@@ -34,13 +34,12 @@ from cpp_mujoco.agent.ddqn import ddqn_update, softmax_actions
 from cpp_mujoco.agent.demonstrations import record_demonstrations
 from cpp_mujoco.agent.network import (
     QNetwork,
-    check_can_start_from,
     observation_to_tensors,
     scalar_inputs,
 )
 from cpp_mujoco.agent.policy import GreedyAgent
-from cpp_mujoco.agent.replay import ReplayBuffer
-from cpp_mujoco.agent.run_folder import StopSignals, TrainingInterrupted, claim_run_folder
+from cpp_mujoco.agent.replay import ReplayBuffer, concatenate_batches
+from cpp_mujoco.agent.run_folder import StopSignals, TrainingInterrupted
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.evaluate import EvaluationResult, evaluate, protocol_budgets
 from cpp_mujoco.grid.mdp import GridConfig
@@ -151,7 +150,7 @@ class Trainer:
         s = self.replay.sample(c.batch_size - n_demo, self.rng)
         demo = np.zeros(c.batch_size, dtype=bool)
         if n_demo:
-            s = _concat(s, self.demos.sample(n_demo, self.rng))
+            s = concatenate_batches(s, self.demos.sample(n_demo, self.rng))
             demo[-n_demo:] = True
         d = self.device
         scale, wind = c.input_budget_scale, self.online.wind_inputs
@@ -386,41 +385,3 @@ def initial_network(config: TrainConfig) -> QNetwork:
     from cpp_mujoco.agent import load_agent  # the package imports this module
 
     return load_agent(config.init_from).network
-
-
-def _concat(a: dict, b: dict) -> dict:
-    """Concatenate two sampled batches field by field (``obs``/``next_obs`` are pairs)."""
-    out = {}
-    for k, v in a.items():
-        if isinstance(v, tuple):
-            out[k] = tuple(np.concatenate([x, y]) for x, y in zip(v, b[k], strict=True))
-        else:
-            out[k] = np.concatenate([v, b[k]])
-    return out
-
-
-def train(
-    config: TrainConfig,
-    out_dir: str | os.PathLike,
-    *,
-    resume: bool = False,
-    overwrite: bool = False,
-    progress: bool = True,
-) -> Trainer:
-    """Train (or continue) a run in ``out_dir``, which is locked meanwhile; returns the trainer.
-
-    A non-empty ``out_dir`` needs ``resume`` (continue its checkpoint) or ``overwrite`` (replace
-    the run): :class:`~cpp_mujoco.agent.run_folder.RunFolderError` otherwise, before any write.
-    """
-    start = None
-    if config.init_from:  # a bad name or an unfit network fails before the folder is claimed
-        start = initial_network(config)
-        check_can_start_from(start, *load_map(config.map).shape, config.wind is not None)
-    with claim_run_folder(out_dir, resume=resume, overwrite=overwrite) as out:
-        trainer = Trainer(config, out, init_network=start)
-        if resume and trainer.resume():
-            print(f"resuming {out / 'checkpoint.pt'} at update {trainer.updates}")
-        elif resume:
-            print(f"--resume: no checkpoint.pt in {out}; starting a new run there")
-        trainer.run(progress=progress)
-    return trainer
