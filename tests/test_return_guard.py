@@ -81,15 +81,36 @@ def test_it_lets_the_policy_fly_while_the_way_home_is_paid_then_takes_over_for_g
     # at (0, 3): home is 3 moves; flying on east leaves 4 moves home + a unit + the reserve
     mean, var = guard.stats(EAST)
     rho = guard.prior(LAND)[2]
-    needed = 5 * mean + 3 * (5 * var * (1 + rho) / (1 - rho)) ** 0.5 + UNIT * 1.25
+    gust = guard.gust_factor()  # these moves cost a little more than the calm calibration
+    assert gust == pytest.approx(UNIT / guard.prior(EAST)[0], rel=0.01) and gust > 1.0
+    needed = 5 * mean * gust + 3 * (5 * var * (1 + rho) / (1 - rho)) ** 0.5 + UNIT * 1.25
     assert guard.filter(3, EAST, needed + 1.0) == EAST and not guard.active
-    assert guard.filter(3, EAST, needed - 1.0) == WEST and guard.active
+    assert guard.filter(3, EAST, needed - 1.0) == WEST and guard.active and guard.homing
     assert guard.filter(2, WEST, needed - 1.0) == WEST and not guard.active  # homeward anyway
+    assert guard.filter(2, EAST, 1e9) == WEST and guard.active  # homing: no turning away
     assert guard.filter(2, NORTH, 0.0) == WEST and guard.active  # rejected: would hover
-    assert guard.filter(0, EAST, 10.0) == LAND and guard.takeovers == 3
+    assert guard.filter(0, EAST, 10.0) == LAND and guard.takeovers == 4
     assert guard.filter(0, LAND, 0.0) == LAND and not guard.active
     guard.reset()
-    assert guard.takeovers == 0 and guard.filter(3, EAST, 1e9) == EAST
+    assert guard.takeovers == 0 and not guard.homing and guard.filter(3, EAST, 1e9) == EAST
+
+
+def test_dear_recent_actions_make_the_way_home_dearer():
+    """A gust lasts several actions: after moves that cost twice their calibrated cost the
+    guard prices the way home twice as dear and turns back where it would have flown on."""
+    calm, gusty = ReturnGuard(STRIP, UNIT, DRAG), ReturnGuard(STRIP, UNIT, DRAG)
+    for guard, factor in ((calm, 1.0), (gusty, 2.0)):
+        for _ in range(6):  # the running ratio forgets the start: (1 - w)^6 of it is left
+            guard.observe(NORTH, False, factor * guard.prior(NORTH)[0])
+            guard.observe(SOUTH, False, factor * guard.prior(SOUTH)[0])
+    assert calm.gust_factor() == pytest.approx(1.0)
+    assert gusty.gust_factor() == pytest.approx(2.0, rel=0.02)
+    remaining = 6.0 * UNIT  # at (0, 2), two moves home: enough for calm air, not for the gust
+    assert calm.filter(2, EAST, remaining) == EAST and not calm.active
+    assert gusty.filter(2, EAST, remaining) == WEST and gusty.active
+    cheap = ReturnGuard(STRIP, UNIT, DRAG)
+    cheap.observe(NORTH, False, 0.5 * cheap.prior(NORTH)[0])
+    assert cheap.gust_factor() == 1.0  # cheaper than expected never shrinks the way home
 
 
 def test_the_option_is_a_bool():

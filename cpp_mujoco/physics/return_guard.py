@@ -14,12 +14,16 @@ variance of n independent ones). The grid's rules need one whole unit left on ar
 and a landing begun then finishes on the pack's reserve.
 
 Before each action the guard asks: after this action, would the energy left still pay for the
-way home from where it leads — expected cost plus ``sigmas`` standard deviations of this action
-and that way together — plus one unit and ``reserve_units``? If not, it takes over and flies the
-next step of that way home (or lands). It intervenes no more than that: a policy heading home on
-its own keeps control, so it still covers what it meant to on the way back, and a policy that
-turns away again is overruled again. It reads nothing a real autopilot could not know (its own
-energy meter, its wind estimate, the map), and it works for any policy.
+way home from where it leads — expected cost, scaled by how much dearer than calibrated this
+flight's recent actions were (:meth:`ReturnGuard.gust_factor`: a Dryden gust lasts several
+actions, and a headwind move's cost grows steeply with the gust), plus ``sigmas`` standard
+deviations of this action and that way together — plus one unit and ``reserve_units``? If not, it
+takes over and flies the next step of that way home (or lands). From then on it is homing: the
+policy keeps control only for moves that bring home nearer and stay paid, so it still covers what
+it can on the way back, but never turns away again (measured: handing control back after one
+step home let policies turn away in the same gust, and each turn cost a way back). It reads
+nothing a real autopilot could not know (its own energy meter, its wind estimate, the map), and
+it works for any policy.
 """
 
 from __future__ import annotations
@@ -47,6 +51,9 @@ class GuardSettings(ReturnMargin):
     wind-aware planner) and how much the calibration counts against this flight's own moves."""
 
     prior_weight: float = 3.0  # the calibrated cost of a kind counts as this many flown samples
+    # weight of the newest action in the running ratio of what actions cost to what was
+    # expected of them (a gust persists over several actions: see ReturnGuard.gust_factor)
+    gust_weight: float = 0.5
 
 
 class ReturnGuard:
@@ -76,9 +83,11 @@ class ReturnGuard:
     def reset(self) -> None:
         self.samples: list[list[float]] = [[] for _ in range(NUM_ACTIONS)]  # J per action kind
         self.active = False
+        self.homing = False  # the guard has taken over once: from now on it only lets go home
         self.takeovers = 0  # actions the guard chose instead of the policy this episode
         self._force, self._force_n = [0.0, 0.0], 0
         self._plan = None
+        self._ratio = 1.0  # running cost / expected cost of this flight's recent actions
 
     # ------------------------------------------------------------------ bookkeeping
     def observe(self, action: int, rejected: bool, energy_j: float, external_force=None) -> None:
@@ -92,8 +101,21 @@ class ReturnGuard:
             self._plan = None
         if action == LAND and not rejected:
             return
-        self.samples[LAND if rejected else action].append(float(energy_j))
+        kind = LAND if rejected else action
+        expected = self.prior(kind)[0]
+        if expected > 0:
+            w = self.settings.gust_weight
+            self._ratio = (1 - w) * self._ratio + w * float(energy_j) / expected
+        self.samples[kind].append(float(energy_j))
         self._plan = None
+
+    def gust_factor(self) -> float:
+        """How much dearer than expected this flight's recent actions were (≥ 1): the running
+        ratio of their energy to the calibrated cost at the felt mean wind. Dryden gusts are
+        correlated over several actions, and a move's cost grows steeply with the headwind
+        (upwind 1.4 units at 9 m/s, 2.1 at 12), so a gust that made the last actions dear
+        makes the way home dear too; the guard scales the way home's expected cost by this."""
+        return max(1.0, self._ratio)
 
     def wind_estimate(self) -> tuple[float, tuple[float, float]]:
         """(m/s, unit vector (east, north) pointing upwind) from the mean external force felt:
@@ -169,8 +191,9 @@ class ReturnGuard:
 
     # ------------------------------------------------------------------ the decision
     def filter(self, cell: int, action: int, remaining_j: float) -> int:
-        """The action to fly: the policy's while the way home stays paid after it, else the
-        guard's next step home (:attr:`active` says which it was this step)."""
+        """The action to fly: the policy's while the way home stays paid after it (and, once the
+        guard has taken over, only if it leads home), else the guard's next step home
+        (:attr:`active` says which it was this step)."""
         self.active = False
         if action == LAND and self.safety.accepted[cell, LAND]:
             return action  # landing already
@@ -182,10 +205,14 @@ class ReturnGuard:
         rho = self.prior(LAND)[2]
         spread = math.sqrt((var + variance[nxt]) * correlation_widening(rho))
         sigmas, reserve = self.settings.margin(self.wind_estimate()[0])
-        needed = mean + dist[nxt] + sigmas * spread
-        if remaining_j >= needed + self.unit * (1.0 + reserve):
+        needed = (mean + dist[nxt]) * self.gust_factor() + sigmas * spread
+        paid = remaining_j >= needed + self.unit * (1.0 + reserve)
+        # once homing, only moves that bring home nearer: a policy let go again after one step
+        # home would turn away again, and each turn costs a way back in the same gust
+        homeward = not rejected and dist[nxt] < dist[cell]
+        if paid and (homeward or not self.homing):
             return action
-        self.active = True
+        self.active = self.homing = True
         self.takeovers += 1
         return self._homeward(cell)
 
