@@ -23,13 +23,18 @@ from cpp_mujoco.physics.geometry import GridGeometry
 
 
 class BatchedCamera:
-    """Frames of the downward camera of drones with their own ``MjData`` (``datas``); marks
-    the (n, H·W) ``coverage`` rows and counts newly seen target cells."""
+    """Frames of the downward camera of n drones; marks the (n, H·W) ``coverage`` rows and
+    counts newly seen target cells. ``cam_xpos`` (n, ncam, 3), ``cam_xmat`` (n, ncam, 9) and
+    ``clock`` (n,) are live arrays of the drones' camera poses and times (the batch's bound
+    fields: the pose MuJoCo computed in each drone's last step, as a single flight reads it
+    from its ``MjData``)."""
 
     def __init__(
         self,
         model: mujoco.MjModel,
-        datas: list,
+        cam_xpos: np.ndarray,
+        cam_xmat: np.ndarray,
+        clock: np.ndarray,
         geo: GridGeometry,
         config: PhysicsConfig,
         target: np.ndarray,
@@ -40,8 +45,7 @@ class BatchedCamera:
         cam = int(model.camera(camera).id)
         fovy = float(model.cam_fovy[cam])
         self.rays = np.array(corner_rays(fovy))  # (4, 3)
-        self.poses = [(d.cam_xpos[cam], d.cam_xmat[cam]) for d in datas]
-        self.datas = datas
+        self.cam_xpos, self.cam_xmat, self.clock = cam_xpos[:, cam], cam_xmat[:, cam], clock
         self.geo = geo
         self.period = 1.0 / config.camera_rate
         self.cos_max_tilt = math.cos(math.radians(config.max_frame_tilt_deg))
@@ -52,21 +56,15 @@ class BatchedCamera:
         self.target = np.asarray(target, dtype=bool).reshape(-1)
         self.coverage = coverage
         self.min_down = min_down
-        self.next_frame = np.zeros(len(datas))
+        self.next_frame = np.zeros(len(clock))
 
     def reset(self, i: int) -> None:
         self.next_frame[i] = 0.0
 
     def capture(self, drones: np.ndarray) -> np.ndarray:
         """A frame of each of ``drones`` now; how many target cells each saw first."""
-        n = drones.size
-        pose = np.empty((n, 12))
-        times = np.empty(n)
-        for j, i in enumerate(drones.tolist()):
-            pos, mat = self.poses[i]
-            pose[j, :3], pose[j, 3:] = pos, mat
-            times[j] = self.datas[i].time
-        self.next_frame[drones] = times + self.period
+        pose = np.concatenate((self.cam_xpos[drones], self.cam_xmat[drones]), axis=1)
+        self.next_frame[drones] = self.clock[drones] + self.period
         seen = self.seen(pose)
         rows = self.coverage[drones]
         newly = mark_seen(rows, seen, self.target)

@@ -1,29 +1,35 @@
-"""N quadrotors flying grid actions together: one numpy control law, N ``MjData`` in threads.
+"""N quadrotors flying grid actions together: one numpy control law, MuJoCo's batch stepping.
 
 Why this shape: a single :class:`~cpp_mujoco.physics.flight.Flight` spends about as long in its
 Python control tick as MuJoCo spends on the five physics steps between ticks. Here the tick's
 work (references, controller, energy, battery, wind, drag, failure checks) is done once for all
 drones as arrays (:mod:`~cpp_mujoco.physics.batched_control`,
-:mod:`~cpp_mujoco.physics.batched_power`), and each drone keeps its own ``MjData`` — so its
-contacts (touchdown) and camera pose (coverage) are MuJoCo's own, exactly as in the single
-flight — stepped by ``mj_step``, which releases the GIL, over a small thread pool. (MuJoCo's
-``rollout`` module steps states, not persistent ``MjData``: it would lose both.)
+:mod:`~cpp_mujoco.physics.batched_power`), and the physics of all drones is one call of
+``mujoco.batch.Batch.step`` (MuJoCo ≥ 3.17): C loops over the drones on ``threads`` threads
+(the caller's included) without the GIL, no Python call per drone. The batch is *persistent*:
+each drone keeps its own ``MjData`` inside it, and its state row (:attr:`BatchedFlight.state`,
+``mjSTATE_INTEGRATION``) carries the solver's warmstart and the inputs — so every step is the
+``mj_step`` a single flight takes on its own ``MjData``, bit for bit: contacts (touchdown) and
+the camera pose (coverage) are MuJoCo's own, one substep behind the state as after ``mj_step``.
+(``mujoco.rollout`` was the alternative: it steps states through scratch ``MjData`` that start
+each call with a zero warmstart and no contacts, and stops a trajectory at its first warning —
+exact only for drones provably clear of the ground, with a per-drone path beside it.)
 
 A macro-action ends at a different time for each drone; the drones that are done wait (no
 physics) while the others fly, so every drone's flight is the one its single flight would fly.
-What stays per drone in plain Python is what happens at camera rate or once per action: the
-coverage frames (:class:`~cpp_mujoco.physics.camera.CoverageCamera`), touchdown checks while
-landing, and the motors-off settle after touchdown.
+What stays per drone in plain Python is what happens once per action or near the ground: the
+failure messages, the touchdown checks while landing (a drone's ``MjData`` is copied out of the
+batch only at a tick with contacts) and the motors-off settle.
 """
 
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from mujoco.batch import Batch
 
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.batched_camera import BatchedCamera
@@ -60,13 +66,18 @@ class _Action:
     worst2: np.ndarray  # the largest squared horizontal tracking error
 
 
-_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS  # time, qpos, qvel, act (+ plugin state)
-_INPUT = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+_ROW = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # the batch's state rows
+
+
+def _column(model: mujoco.MjModel, component: mujoco.mjtState) -> int:
+    """First column of a state component in a row: components are stored in bit order."""
+    return mujoco.mj_stateSize(model, (int(component) - 1) & _ROW)
 
 
 class BatchedFlight:
     """``n`` drones over one map and model. ``coverage``: the (n, H·W) bool rows the cameras
-    mark (the env passes its MDP's); ``threads``: how many threads step the physics."""
+    mark (the env passes its MDP's); ``threads``: how many threads step the physics (the
+    caller's included). The batch steps a copy of ``model``, made here."""
 
     def __init__(
         self,
@@ -81,52 +92,60 @@ class BatchedFlight:
         # models whose twins fly here): one place to derive them
         self.one = one = Flight(model, grid_map, config)
         self.model, self.config, self.n, self.k, self.dt = model, config, n, one.k, one.dt
-        self.datas = [mujoco.MjData(model) for _ in range(n)]
-        self.camera = BatchedCamera(model, self.datas, one.geo, config, grid_map.target, coverage)
+        self.threads = max(1, int(threads))
+        # one persistent MjData per drone, stepped in C (the batch copies the model once)
+        self.sims = sims = Batch(model, n, nthread=self.threads, persistent=True)
+        # (n, nstate) live rows: time, qpos, qvel, act, warmstart, ctrl, …, xfrc_applied
+        self.state = sims.state
+        self._ncon = sims.bind("ncon")  # each drone's contacts of its last step
+        # MuJoCo's count of its divergence resets (a bad acceleration), per drone: the single
+        # flight's test, against the count at the episode's start
+        self._bad = sims.warning[:, mujoco.mjtWarning.mjWARN_BADQACC, 1]
+        self._bad0 = np.zeros(n, dtype=self._bad.dtype)
+        self._contacts = mujoco.MjData(model)  # a drone's MjData copied out, to read them
+        self.camera = BatchedCamera(
+            model, sims.bind("cam_xpos"), sims.bind("cam_xmat"), self.state[:, 0], one.geo,
+            config, grid_map.target, coverage,
+        )  # fmt: skip
         self.coverage = coverage
         self.controller = BatchedController(one.controller, n)
         self.energy_of = BatchedEnergy(one.interval_energy)
         self.battery = BatchedBattery(one.battery.spec, n)
         self.wind = BatchedWind(one.wind, n)
         self.refs = References(n, one.controller.lead, config.land_duration, config.land_speed)
-        nq, nv = model.nq, model.nv
-        self.state = np.zeros((n, mujoco.mj_stateSize(model, _STATE)))
-        self.inputs = np.zeros((n, mujoco.mj_stateSize(model, _INPUT)))
+        S = mujoco.mjtState
         jnt = int(model.body_jntadr[model.body_parentid[one.params.body_id]])
-        q0, v0 = 1 + int(model.jnt_qposadr[jnt]), 1 + nq + int(model.jnt_dofadr[jnt])
-        self.cols = (slice(q0, q0 + 7), slice(v0, v0 + 6), slice(1 + nq + nv, 1 + nq + nv + 4))
-        nu = model.nu
-        self.ctrl_cols = slice(0, nu)
-        b = one.params.body_id
-        self.force_cols = slice(nu + 6 * b, nu + 6 * b + 3)
+        q0 = _column(model, S.mjSTATE_QPOS) + int(model.jnt_qposadr[jnt])
+        v0 = _column(model, S.mjSTATE_QVEL) + int(model.jnt_dofadr[jnt])
+        a0 = _column(model, S.mjSTATE_ACT)
+        self.cols = (slice(q0, q0 + 7), slice(v0, v0 + 6), slice(a0, a0 + model.na))
+        u0 = _column(model, S.mjSTATE_CTRL)
+        self.ctrl_cols = slice(u0, u0 + model.nu)
+        f0 = _column(model, S.mjSTATE_XFRC_APPLIED) + 6 * one.params.body_id
+        self.force_cols = slice(f0, f0 + 3)  # the drag force on the body
         self.capacity = np.full(n, math.inf)
         self.energy_used = np.zeros(n)
         self.motors_on = np.ones(n, dtype=bool)
         self.nfz_violations = np.zeros(n, dtype=np.int64)
         self.max_track_error = np.zeros(n)
-        self._reset_by_mujoco = np.zeros(n, dtype=bool)  # see _step
         self.no_fly = np.asarray(grid_map.nfz, dtype=bool).reshape(-1)
-        self.threads = max(1, int(threads))
-        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown()
-            self._pool = None
+        """Nothing to release: the batch's threads idle without CPU and go with the object."""
 
     # ------------------------------------------------------------------ episode state
     def reset(self, i: int, row: int, col: int, capacity: float, rng: np.random.Generator):
-        """Drone ``i`` hovers level at cruise altitude over (row, col): :meth:`Flight.reset`."""
-        m, d, one = self.model, self.datas[i], self.one
-        mujoco.mj_resetData(m, d)
-        jq = self.cols[0].start - 1
+        """Drone ``i`` hovers level at cruise altitude over (row, col): :meth:`Flight.reset`
+        (``mj_resetData``, the pose and thrusts written, ``mj_forward``)."""
+        one, st = self.one, self.state
+        self.sims.reset([i], stage=mujoco.mjtStage.mjSTAGE_NONE)
         x, y = one.geo.cell_center(row, col)
-        d.qpos[jq : jq + 3] = (x, y, one.cruise_z)
-        d.qpos[jq + 3 : jq + 7] = (1, 0, 0, 0)
+        q = self.cols[0].start
+        st[i, q : q + 7] = (x, y, one.cruise_z, 1, 0, 0, 0)
         hover = one.controller.hover_thrust()
-        d.ctrl[:] = hover
-        d.act[:] = hover
-        mujoco.mj_forward(m, d)
+        st[i, self.ctrl_cols] = hover
+        st[i, self.cols[2]] = hover
+        self.sims.forward([i])
         self.controller.reset(i)
         self.wind.reset(i, rng)
         self.capacity[i] = capacity
@@ -137,46 +156,34 @@ class BatchedFlight:
         self.max_track_error[i] = 0.0
         self.camera.reset(i)
         self.coverage[i] = False
-        self._reset_by_mujoco[i] = False
-        mujoco.mj_getState(m, d, self.state[i], _STATE)
+        self._bad0[i] = self._bad[i]
 
     def position(self, i: int) -> np.ndarray:
         return self.state[i, self.cols[0]][:3].copy()
 
     # ------------------------------------------------------------------ physics
-    def _step_some(self, drones: list[int], nstep: int) -> None:
-        m, datas, state, inputs = self.model, self.datas, self.state, self.inputs
-        set_state, get_state, step = mujoco.mj_setState, mujoco.mj_getState, mujoco.mj_step
-        for i in drones:
-            d = datas[i]
-            set_state(m, d, inputs[i], _INPUT)
-            step(m, d, nstep)
-            get_state(m, d, state[i], _STATE)
-
     def _step(self, drones: np.ndarray, nstep: int) -> None:
-        """``nstep`` physics steps of ``drones`` with their :attr:`inputs` (ctrl, body force),
-        split over the threads (this one waits, so they share the GIL only among themselves).
+        """``nstep`` physics steps of ``drones`` (sorted) with the ctrl and body force in
+        their rows: one ``Batch.step``, split over the threads in C. A diverging drone (a NaN
+        or huge acceleration) is reset by MuJoCo, which counts it in the drone's warnings: the
+        next tick's failure check reads that count, as the single flight does."""
+        self.sims.step(drones, nstep)
 
-        A diverging simulation (a NaN or huge acceleration) makes MuJoCo warn and reset the
-        ``MjData`` — its clock with it: a clock that did not advance by ``nstep`` steps is that
-        reset (the single flight reads the warning counter; one comparison here is cheaper)."""
-        before = self.state[drones, 0]
-        order = drones.tolist()
-        if self._pool is None or len(order) < 2 * self.threads:
-            self._step_some(order, nstep)
-        else:
-            chunks = [order[j :: self.threads] for j in range(self.threads)]
-            for future in [self._pool.submit(self._step_some, c, nstep) for c in chunks]:
-                future.result()
-        ts = self.model.opt.timestep
-        jumped = np.abs(self.state[drones, 0] - before - nstep * ts) > 0.5 * ts
-        self._reset_by_mujoco[drones] |= jumped
+    def _ground_contact(self, i: int) -> bool | None:
+        """:func:`ground_contact` of drone ``i``'s last step; its ``MjData`` is copied out of the
+        batch only when it had contacts (touchdown: a few ticks per landing)."""
+        if self._ncon[i] == 0:
+            return None
+        data = self.sims.get_data(i, self._contacts)
+        one = self.one
+        return ground_contact(data, one.gear_geoms, one.quad_geoms, one.ground_id)
 
     def _settle(self, i: int, seconds: float = 0.3) -> None:
         """:meth:`Flight._settle`: motors off after touchdown, the airframe comes to rest."""
         self.motors_on[i] = False
         self.battery.current[i] = 0.0
-        self.inputs[i] = 0.0
+        self.state[i, self.ctrl_cols] = 0.0
+        self.state[i, self.force_cols] = 0.0
         self._step(np.array([i]), max(1, round(seconds / self.config.timestep)))
 
     # ------------------------------------------------------------------ macro-steps
@@ -233,11 +240,7 @@ class BatchedFlight:
 
     def _loop(self, a: _Action) -> None:
         """The tick loop of :meth:`Flight._fly` over the drones still flying: one control tick
-        for all of them (:meth:`_tick`), then their physics steps.
-
-        (Tried and measured: a two-stage pipeline, one half's control tick while a thread steps
-        the other half, runs *slower* — that thread needs the GIL back after every ``mj_step``
-        and waits for the numpy work to let go of it.)"""
+        for all of them (:meth:`_tick`), then their physics steps (one C call)."""
         k, dt = self.k, self.dt
         while a.flying.any():
             go = self._tick(np.flatnonzero(a.flying), a)
@@ -262,7 +265,7 @@ class BatchedFlight:
         R = quat_to_mat(qp[:, 3:])
         on = self.motors_on[i]
         # ---- failure checks on the current state
-        broken = ~np.isfinite(qp.sum(1)) | self._reset_by_mujoco[i]
+        broken = ~np.isfinite(qp.sum(1)) | (self._bad[i] != self._bad0[i])
         out = (np.abs(pos[:, 0]) > bx) | (np.abs(pos[:, 1]) > by) | (pos[:, 2] > bz)
         flipped = (R[:, 8] < one.cos_flip) & on
         failed = broken | out | flipped
@@ -293,8 +296,7 @@ class BatchedFlight:
         ti = t[i]
         for j in np.flatnonzero(~ended & (~on | a.land[i])).tolist():
             d = int(i[j])
-            touch = ground_contact(self.datas[d], one.gear_geoms, one.quad_geoms,
-                                   one.ground_id)  # fmt: skip
+            touch = self._ground_contact(d)
             if not on[j]:
                 if touch is not None or ti[j] >= c.fall_time_limit:
                     res["failure"][d] = self.battery.failure[d]
@@ -330,7 +332,8 @@ class BatchedFlight:
         return go
 
     def _control(self, i, pos, vel, R, omega, act, p_ref, v_ref, a_ref, a: _Action) -> None:
-        """Wind, control, energy, battery and drag of one tick: the drones' :attr:`inputs`."""
+        """Wind, control, energy, battery and drag of one tick: the drones' inputs (ctrl and drag
+        force, written into their state rows for the next step)."""
         c, dt = self.config, self.dt
         t, limit, land, emergency, goal = a.t, a.limit, a.land, a.emergency, a.goal
         w = self.wind.velocity(i, pos, dt)  # every tick: the gusts advance for every drone
@@ -370,5 +373,5 @@ class BatchedFlight:
                 end = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z + 0.3)], 1)
                 self.refs.set(d, p, end, np.full(len(d), c.land_duration), True)
                 goal[d] = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z)], 1)
-        self.inputs[i, self.ctrl_cols] = f
-        self.inputs[i, self.force_cols] = drag_force(self.one.drag.half_rho_cda, vel, w)
+        self.state[i, self.ctrl_cols] = f
+        self.state[i, self.force_cols] = drag_force(self.one.drag.half_rho_cda, vel, w)

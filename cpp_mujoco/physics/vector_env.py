@@ -2,8 +2,9 @@
 
 N quadrotors fly their grid actions together
 (:class:`~cpp_mujoco.physics.batched_flight.BatchedFlight`): one numpy control tick for all
-of them, their ``MjData`` stepped by ``threads`` threads. Everything around the flight is the
-grid vector env's (:class:`~cpp_mujoco.grid.vector_env.GridVectorEnv`): seeding
+of them, their ``MjData`` stepped in one ``mujoco.batch`` call on ``threads`` threads.
+Everything around the flight is the grid vector env's
+(:class:`~cpp_mujoco.grid.vector_env.GridVectorEnv`): seeding
 (``reset(seed=[...])``, one generator per env, drawn in a single env's order), per-env reset
 options (``start``, ``budget`` as arrays, ``reset_mask``), the autoreset modes, the observation
 and the MDP's rules (:meth:`GridMDP.apply`). Each env's episode is the one a single
