@@ -159,7 +159,7 @@ def cmd_evaluate(args) -> None:
 
         if not args.map_set:
             raise ValueError("--first needs --map-set")
-        return cmd_evaluate_map_set(args, DEFAULT_PLANNERS)
+        return cmd_evaluate_map_set(args, DEFAULT_PLANNERS, weather, runtime)
     grid_maps = [load_map(spec) for spec in args.map or bundled_maps()]
     for spec in args.agent:
         _check_agent(spec)

@@ -39,8 +39,9 @@ def add_generate_options(p) -> None:
 def add_map_set_options(p) -> None:
     p.add_argument(
         "--map-set", metavar="NAME",
-        help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1), flown on the "
-        "grid with its size class's budgets (16x16: 25..75, 32x32: 50..150)",
+        help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1), flown on "
+        "--backend with its size class's budgets (16x16: 25..75, 32x32: 50..150); writes a JSON "
+        "and its figures (per-map coverage, example trajectories) into --out",
     )  # fmt: skip
     p.add_argument(
         "--first", type=int_at_least(1), metavar="N",
@@ -139,13 +140,16 @@ def _set_agent(spec: str, set_name: str, size: int):
     return agent
 
 
-def cmd_evaluate_map_set(args, planner_names: tuple[str, ...]) -> None:
-    """``evaluate --map-set NAME``: the protocol on every map of the set, a per-map table, the
-    means per policy, and one JSON with all of it."""
+def cmd_evaluate_map_set(
+    args, planner_names: tuple[str, ...], weather: dict | None = None, runtime=None
+) -> None:
+    """``evaluate --map-set NAME``: the protocol on every map of the set (on the grid or in
+    MuJoCo), a per-map table, the means per policy, one JSON with all of it, and its figures
+    beside it — as ``evaluate`` writes figures beside its JSON for single maps."""
+    from contextlib import nullcontext
+
     if args.map:
         raise ValueError("--map-set replaces --map; give one of them")
-    if args.backend != "grid":
-        raise ValueError("--map-set runs on the grid backend (--backend grid)")
     from cpp_mujoco.map_sets import load_map_set, map_set_spec
     from cpp_mujoco.planners import make_planner
 
@@ -156,15 +160,27 @@ def cmd_evaluate_map_set(args, planner_names: tuple[str, ...]) -> None:
     policies = [(name, make_planner(name)) for name in names] + agents
     out = out_dir(args.out)
     from cpp_mujoco.map_set_eval import evaluate_map_set
+    from cpp_mujoco.review.map_set_figures import load_map_set_result, write_map_set_figures
     from cpp_mujoco.review.results import file_part
 
-    result = evaluate_map_set(spec, maps, policies, args.budget_step, progress_wanted(args))
+    physics = {}
+    if args.backend == "mujoco":
+        engine = "ray" if args.ray else "local"
+        physics = {"workers": args.workers, "env_kwargs": weather or {}, "engine": engine}
+    with runtime or nullcontext():
+        result = evaluate_map_set(
+            spec, maps, policies, args.budget_step, progress_wanted(args), args.backend,
+            **physics,
+        )  # fmt: skip
     per_map, means = result.tables()
     part = "" if args.first is None else f"_first{args.first}"
-    path = result.to_json(out / f"grid_{file_part(spec.name)}{part}.json")
+    path = result.to_json(out / f"{args.backend}_{file_part(spec.name)}{part}.json")
+    grid_maps = {m.label: m for m in result.maps}  # drawn from the JSON just written
+    figures = write_map_set_figures({path.stem: load_map_set_result(path)}, out, grid_maps)
     budgets = f"budgets {result.budgets[0]}..{result.budgets[-1]} step {args.budget_step}"
-    print(f"map set {spec.name}: {len(maps)} of {spec.count} maps, {budgets}, grid")
+    print(f"map set {spec.name}: {len(maps)} of {spec.count} maps, {budgets}, {args.backend}")
     print(per_map)
     print()
     print(means)
     print(f"\nresults: {path}")
+    print("figures: " + ", ".join(str(f) for f in figures))

@@ -2,10 +2,13 @@
 
 Each map is flown with the protocol of :func:`~cpp_mujoco.evaluate.evaluate` (every landing cell
 × every budget of the set's size class, :func:`~cpp_mujoco.size_classes.budget_range`) on the
-grid. A set's figure for a policy is the mean over its maps of the per-map ratios, so every map
-counts the same whatever its landing zone's size; the ratios pooled over all episodes are
-recorded beside it. The JSON names the set (name, version, how many of its maps), every map
-(name, seed, digest), the policy, backend and budgets, so no number is ambiguous.
+grid or in MuJoCo. A set's figure for a policy is the mean over its maps of the per-map ratios,
+so every map counts the same whatever its landing zone's size; the ratios pooled over all
+episodes are recorded beside it. The JSON names the set (name, version, how many of its maps),
+every map (name, seed, digest), the policy, backend and budgets, so no number is ambiguous. Each
+row also keeps one example episode (the map's first landing cell, the middle budget: its cells,
+coverage, landing), so the figures (:mod:`cpp_mujoco.review.map_set_figures`) can show what a
+policy did on a map from the JSON alone, without flying it again.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from cpp_mujoco.evaluate import evaluate, protocol_budgets, split_conditions
+from cpp_mujoco.evaluate import EvaluationResult, evaluate, protocol_budgets, split_conditions
 from cpp_mujoco.io import atomic_write_text, json_default, json_plain
 from cpp_mujoco.map_sets import MapSetSpec
 from cpp_mujoco.maps import GridMap
@@ -81,6 +84,10 @@ class MapSetResult:
             "backend": self.backend,
             "budgets": {"min": self.budgets[0], "max": self.budgets[-1], "step": self.budget_step},
             "mean_is": "the mean over the maps of each map's ratio (every map weighs the same)",
+            "example_episode": {
+                "start": "each map's first landing cell (row-major order)",
+                "budget": example_budget(self.budgets),
+            },
             "policies": self.summary(),
             "conditions": shared,
             "rows": rows,
@@ -128,15 +135,60 @@ class MapSetResult:
         )
 
 
+def example_budget(budgets: Sequence[int]) -> int:
+    """The budget of the rows' example episodes: the middle one of those flown."""
+    return int(budgets[len(budgets) // 2])
+
+
+def example_episode(result: EvaluationResult, budget: int) -> dict:
+    """The episode from the map's first landing cell at ``budget``: what a figure draws."""
+    start = result.starts[0]
+    sel = np.flatnonzero((result.budgets == budget) & (result.starts == start).all(axis=1))
+    if sel.size == 0:
+        raise ValueError(f"no episode from {tuple(start)} with budget {budget}")
+    i = int(sel[0])
+    cells = result.trajectories[i]
+    return {
+        "start": [int(start[0]), int(start[1])],
+        "budget": int(budget),
+        "cells": cells[cells >= 0].tolist(),
+        "landed": bool(result.landed[i]),
+        "coverage_ratio": float(result.coverage[i]),
+        "steps": int(result.steps[i]),
+    }
+
+
+def check_physics(spec: MapSetSpec, grid_map: GridMap, env_kwargs: dict | None = None) -> None:
+    """Build the MuJoCo env of the set's first map before anything flies, so a set the physics
+    cannot hold (or a bad weather option) fails at once, naming the set and its size."""
+    from cpp_mujoco.physics.protocol import make_env
+
+    try:
+        env = make_env(grid_map, {**(env_kwargs or {}), "grid_config": size_config(spec.size)})
+    except ValueError as e:
+        text = " ".join(str(e).split())
+        raise ValueError(
+            f"map set {spec.name!r} ({spec.size}x{spec.size}) cannot be flown in MuJoCo: "
+            f"map {grid_map.label}: {text}"
+        ) from e
+    env.close()
+
+
 def evaluate_map_set(
     spec: MapSetSpec,
     maps: Sequence[GridMap],
     policies: Sequence[tuple[str, Any]],
     budget_step: int = 1,
     progress: bool = False,
+    backend: str = "grid",
+    *,
+    workers: int | None = None,
+    env_kwargs: dict | None = None,
+    engine: str = "local",
 ) -> MapSetResult:
-    """Every policy over every map of the set on the grid, with the set's size-class budgets
-    (every ``budget_step``-th, the maximum always included)."""
+    """Every policy over every map of the set on ``backend``, with the set's size-class budgets
+    (every ``budget_step``-th, the maximum always included). ``workers``, ``env_kwargs``
+    (weather) and ``engine`` are :func:`~cpp_mujoco.evaluate.evaluate`'s, for MuJoCo."""
     from tqdm import tqdm
 
     if not maps:
@@ -146,15 +198,23 @@ def evaluate_map_set(
     for grid_map, digest in zip(maps, spec.digests, strict=False):
         if grid_map.digest != digest:  # rows name each map by the set's seed: they must match
             raise ValueError(f"map {grid_map.label!r} is not the next map of set {spec.name!r}")
+    physics: dict[str, Any] = {}
+    if backend == "mujoco":
+        check_physics(spec, maps[0], env_kwargs)
+        physics = {"workers": workers, "env_kwargs": env_kwargs, "engine": engine}
     config = size_config(spec.size)
     budgets = protocol_budgets(config, step=budget_step)
-    result = MapSetResult(spec, list(maps), budgets, budget_step)
+    middle = example_budget(budgets)
+    result = MapSetResult(spec, list(maps), budgets, budget_step, backend=backend)
     total = len(maps) * len(policies)
     with tqdm(total=total, desc=spec.name, unit="run", disable=not progress) as bar:
         for name, policy in policies:
             for grid_map, seed in zip(maps, spec.seeds, strict=False):
                 start = time.perf_counter()
-                r = evaluate(policy, grid_map, budgets=budgets, config=config, policy_name=name)
+                r = evaluate(
+                    policy, grid_map, backend=backend, budgets=budgets, config=config,
+                    policy_name=name, **physics,
+                )  # fmt: skip
                 seconds = time.perf_counter() - start
                 summary = r.summary()
                 result.rows.append(
@@ -167,6 +227,7 @@ def evaluate_map_set(
                         "backend": r.backend,
                         **{k: summary[k] for k in _NUMBERS},
                         "seconds": seconds,
+                        "example": example_episode(r, middle),
                         "conditions": r.conditions,
                     }
                 )

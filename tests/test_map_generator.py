@@ -228,7 +228,7 @@ def test_evaluate_on_a_map_set(tmp_path, capsys):
     [
         (["--agent", "A"], "per-map agent"),
         (["--map", "A"], "replaces --map"),
-        (["--backend", "mujoco"], "grid backend"),
+        (["--wind-speed", "3"], "needs --backend mujoco"),
     ],
 )
 def test_map_set_refuses_what_it_cannot_run(tmp_path, capsys, extra, message):

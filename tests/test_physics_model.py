@@ -225,3 +225,21 @@ def test_wind_direction_and_gust_statistics():
     samples = np.array([gusty.velocity()[:2] for _ in range(50_000)])
     assert samples.std(axis=0) == pytest.approx([2.0, 2.0], rel=0.15)
     assert abs(samples.mean()) < 0.5
+
+
+@pytest.mark.parametrize("size", [32, 23])  # 23x23 + 4 = 533 numbers: one just over a field
+def test_a_large_map_builds_and_its_scenery_is_stored_whole(size):
+    """MuJoCo takes at most 500 numbers in one custom field: the map is split over several, and
+    the renderer's scenery reads back every cell."""
+    from cpp_mujoco.map_generator import generate_from_seed
+
+    grid_map = generate_from_seed(7, 32) if size == 32 else GridMap.from_ascii(
+        ["L" + "T" * (size - 2) + "N"] + ["T" * size] * (size - 1), name="odd"
+    )  # fmt: skip
+    model = compile_arena(build_arena(grid_map, PhysicsConfig()))
+    data = mujoco.MjData(model)
+    mujoco.mj_step(model, data, 10)
+    ours, stored = Scenery(grid_map, PhysicsConfig()), Scenery.from_model(model)
+    assert (stored.geometry.height, stored.geometry.width) == grid_map.shape
+    for a, b in zip(ours.tiles() + ours.volumes(), stored.tiles() + stored.volumes(), strict=True):
+        assert np.array_equal(a, b)

@@ -31,10 +31,20 @@ with warnings.catch_warnings():
 
 __all__ = [
     "SCENERY_NUMERIC", "GridGeometry", "build_arena", "camera_fovy", "compile_arena",
-    "scenery_numeric",
+    "scenery_fields", "scenery_numeric",
 ]  # fmt: skip
 
 SCENERY_NUMERIC = "cpp_mujoco_scenery"  # the model's custom field: H, W, cell, volume height, cells
+# MuJoCo 3.17 takes at most 500 numbers in one <numeric> (and 501 crashes the process): the map is
+# stored in fields of at most this many, named SCENERY_NUMERIC, then SCENERY_NUMERIC_1, _2, …
+NUMERIC_CHUNK = 500
+
+
+def scenery_fields(values: list[float]) -> list[tuple[str, list[float]]]:
+    """(field name, data) of the chunks that hold ``values`` in the model, in order."""
+    parts = [values[i : i + NUMERIC_CHUNK] for i in range(0, len(values), NUMERIC_CHUNK)]
+    return [(SCENERY_NUMERIC if k == 0 else f"{SCENERY_NUMERIC}_{k}", part)
+            for k, part in enumerate(parts)]  # fmt: skip
 
 
 def scenery_numeric(grid_map: GridMap, cell_size: float, volume_height: float) -> list[float]:
@@ -70,10 +80,9 @@ def build_arena(grid_map: GridMap, config: PhysicsConfig, fov_side: int = 3) -> 
         rgba=(0.35, 0.35, 0.33, 1), contype=1, conaffinity=1, condim=3,
     )  # fmt: skip
     # the map, for the renderer's scenery (review/scenery.py); MuJoCo's physics never reads it
-    arena.custom.add(
-        "numeric", name=SCENERY_NUMERIC,
-        data=scenery_numeric(grid_map, config.cell_size, 2 * config.altitude),
-    )  # fmt: skip
+    values = scenery_numeric(grid_map, config.cell_size, 2 * config.altitude)
+    for name, data in scenery_fields(values):
+        arena.custom.add("numeric", name=name, data=data)
     side = max(hx, hy)
     # MuJoCo sizes the render depth range from the model's extent (znear = 0.01 × extent): without
     # the tiles it would shrink to the quadrotor's size; keep it the map's, as the tiles made it

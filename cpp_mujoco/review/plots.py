@@ -57,7 +57,7 @@ def conditions_text(results: Sequence[EvaluationResult]) -> str:
     return "; ".join([*parts, budgets_text(results)])
 
 
-def _save(fig: Figure, path: str | os.PathLike) -> Path:
+def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
     """Save atomically: a crash or a full disk never leaves a half-written figure, and a failed
     write is a one-line :class:`~cpp_mujoco.io.WriteError`."""
     with atomic_path(path) as tmp:
@@ -96,7 +96,7 @@ def map_figure(map_name: str | GridMap, path: str | os.PathLike) -> Path:
         f"{counts['nfz']} no-fly",
         fontsize=9,
     )
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def draw_trajectory(ax, grid_map: GridMap, cells: np.ndarray, fov_side: int = 3) -> None:
@@ -144,12 +144,12 @@ def trajectories_figure(
             fontsize=9,
         )
     fig.suptitle(f"start {start}; {conditions_text([result])}", fontsize=9)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike) -> Path:
     """The paper's Fig. 3 (:func:`coverage_plot`) saved to ``path``."""
-    return _save(coverage_plot(results), path)
+    return save_figure(coverage_plot(results), path)
 
 
 def coverage_plot(results: Sequence[EvaluationResult]) -> Figure:
@@ -189,7 +189,7 @@ def coverage_plot(results: Sequence[EvaluationResult]) -> Figure:
 
 def wind_sweep_figure(results: Sequence[EvaluationResult], path: str | os.PathLike) -> Path:
     """:func:`wind_sweep_plot` saved to ``path``."""
-    return _save(wind_sweep_plot(results), path)
+    return save_figure(wind_sweep_plot(results), path)
 
 
 def wind_sweep_plot(results: Sequence[EvaluationResult]) -> Figure:

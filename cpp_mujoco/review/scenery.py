@@ -132,6 +132,14 @@ class Scenery:
             values = np.asarray(model.numeric(SCENERY_NUMERIC).data, dtype=float)
         except KeyError:
             return None
+        parts, k = [values], 1
+        while True:  # a large map is stored in several fields (physics/arena.py, scenery_fields)
+            try:
+                parts.append(np.asarray(model.numeric(f"{SCENERY_NUMERIC}_{k}").data, float))
+            except KeyError:
+                break
+            k += 1
+        values = np.concatenate(parts)
         h, w = int(values[0]), int(values[1])
         codes = values[4:].astype(int).reshape(h, w)
         self = cls.__new__(cls)
