@@ -65,7 +65,7 @@ def test_missing_layers(tmp_path, pixel, message):
 
 def test_wrong_mode_is_rejected(tmp_path):
     path = tmp_path / "gray.png"
-    Image.fromarray(np.zeros((4, 4), dtype=np.uint8), mode="L").save(path)
+    Image.fromarray(np.zeros((4, 4), dtype=np.uint8)).save(path)  # 2-D uint8: mode L
     with pytest.raises(MapError, match="mode 'L'"):
         load_map(path)
 
