@@ -27,8 +27,10 @@ COMPASS = (0.0, 90.0, 180.0, 270.0)  # where the wind blows from: north, east, s
 COMPASS_NAMES = {0.0: "N", 90.0: "E", 180.0: "S", 270.0: "W"}
 
 
-def concatenate(results: Sequence[EvaluationResult]) -> EvaluationResult:
-    """One result from runs of one policy on one map and backend over disjoint episodes.
+def concatenate(results: Sequence[EvaluationResult], *, repeated: bool = False) -> EvaluationResult:
+    """One result from runs of one policy on one map and backend over disjoint episodes
+    (``repeated``: the parts may fly the same episodes, each part under its own conditions —
+    the same protocol from each wind direction).
 
     ``conditions``: what the parts share, ``episodes`` in all, and ``parts`` — each part's own
     conditions (its wind direction, its budgets), in order.
@@ -44,7 +46,7 @@ def concatenate(results: Sequence[EvaluationResult]) -> EvaluationResult:
                 f"and {first.map_name}/{first.policy_name}/{first.backend}"
             )
     episodes = [(tuple(s), int(b)) for r in results for s, b in zip(r.starts, r.budgets)]  # noqa: B905
-    if len(set(episodes)) != len(episodes):
+    if not repeated and len(set(episodes)) != len(episodes):
         raise ValueError("the parts share episodes (a start and budget flown twice)")
     length = max(r.trajectories.shape[1] for r in results)
     trajectories = np.full((len(episodes), length), -1, dtype=np.int64)
@@ -53,6 +55,8 @@ def concatenate(results: Sequence[EvaluationResult]) -> EvaluationResult:
         trajectories[row : row + len(r.budgets), : r.trajectories.shape[1]] = r.trajectories
         row += len(r.budgets)
     shared, own = split_conditions([r.conditions for r in results])
+    if repeated and len({repr(c) for c in own}) != len(own):
+        raise ValueError("repeated episodes need each part's own conditions (e.g. its wind)")
     keys = set(first.physics)
     if any(set(r.physics) != keys for r in results):
         raise ValueError("the parts carry different physical figures")
@@ -73,7 +77,12 @@ def concatenate(results: Sequence[EvaluationResult]) -> EvaluationResult:
         trajectories=trajectories,
         upper_bound={k: v for r in results for k, v in r.upper_bound.items()},
         physics={k: np.concatenate([r.physics[k] for r in results]) for k in first.physics},
-        conditions={**shared, "episodes": len(episodes), "parts": own},
+        conditions={
+            **shared,
+            "episodes": len(episodes),
+            "parts": own,
+            **({"directions": "each"} if repeated else {}),
+        },  # fmt: skip
     )
 
 
@@ -90,9 +99,12 @@ def evaluate_in_winds(
     env_kwargs: dict | None = None,
     engine: str = "local",
     ray_address: str | None = None,
+    each_direction: bool = False,
 ) -> EvaluationResult:
     """The protocol (``budgets``, default all) in MuJoCo with a ``wind_speed`` wind from the
-    four compass directions, the budgets dealt round-robin to them (see the module docstring).
+    four compass directions, the budgets dealt round-robin to them (see the module docstring);
+    ``each_direction``: every episode from every direction instead (4× the episodes; the
+    result's conditions say ``directions: each``).
     In calm air (speed 0) the direction means nothing: one run. ``engine``, ``ray_address``:
     as :func:`~cpp_mujoco.evaluate.evaluate`; Ray is started (or connected) once for the four."""
     budgets = sorted(budgets if budgets is not None else protocol_budgets())
@@ -109,7 +121,7 @@ def evaluate_in_winds(
                 policy,
                 grid_map,
                 backend="mujoco",
-                budgets=budgets[k :: len(directions)],
+                budgets=budgets if each_direction else budgets[k :: len(directions)],
                 policy_name=policy_name,
                 workers=workers,
                 progress=progress,
@@ -118,6 +130,6 @@ def evaluate_in_winds(
                 ray_address=ray_address,
             )  # fmt: skip
             for k, direction in enumerate(directions)
-            if budgets[k :: len(directions)]
+            if each_direction or budgets[k :: len(directions)]
         ]
-    return concatenate(parts)
+    return concatenate(parts, repeated=each_direction and len(parts) > 1)

@@ -6,6 +6,7 @@ from N, E, S and W with the budgets dealt round-robin to the four (``cpp_mujoco.
     python scripts/rated_wind.py                    # the full protocol
     python scripts/rated_wind.py --budget-step 5    # quicker
     python scripts/rated_wind.py --guard            # also the paper agents and greedy + guard
+    python scripts/rated_wind.py --each-direction   # every episode from each of N/E/S/W (4×)
     python scripts/rated_wind.py --ray --ray-address HEAD:6379   # on a Ray cluster (README)
 Writes out/rated_wind/{rated_wind.md, rated_wind.json, index.html}; exits 1 if any no-fly
 violation.
@@ -43,13 +44,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--guard", action="store_true", help="add '+ guard' runs (return_guard=True)"
     )
+    parser.add_argument(
+        "--each-direction", action="store_true",
+        help="fly every episode from each of N/E/S/W (4x the episodes), not round-robin",
+    )  # fmt: skip
     parser.add_argument("--out", default="out/rated_wind", help="output folder")
     args = parser.parse_args(argv)
     if error := ray_option_error(args):
         parser.error(error)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    table = Table("the rated wind: 9 m/s from N/E/S/W + moderate turbulence", RATED_COLUMNS)
+    how = "each of N/E/S/W" if args.each_direction else "N/E/S/W"
+    table = Table(f"the rated wind: 9 m/s from {how} + moderate turbulence", RATED_COLUMNS)
     budgets = protocol_budgets(step=args.budget_step)
     grid_maps = [load_map(m) for m in args.maps]  # a bad map fails before any flight
     try:
@@ -65,6 +71,7 @@ def main(argv: list[str] | None = None) -> int:
                     budgets=budgets, policy_name=name, workers=args.workers, engine=engine,
                     progress=sys.stderr.isatty(),
                     env_kwargs={"return_guard": True} if guard else None,
+                    each_direction=args.each_direction,
                 )  # fmt: skip
                 table.rows.append(rated_row(result))
                 print(table.render().splitlines()[-1], flush=True)

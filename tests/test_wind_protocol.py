@@ -58,6 +58,21 @@ def test_four_winds_fly_every_episode_once_each_direction_over_the_budget_range(
     assert row["values"]["max_track_error_m"] == result.physics["max_track_error_m"].max()
 
 
+def test_each_direction_flies_every_episode_from_all_four_and_says_so():
+    result = evaluate_in_winds(
+        SafeGreedyPlanner(), SMALL, 3.0, turbulence="light", budgets=[4, 8], workers=1,
+        each_direction=True,
+    )  # fmt: skip
+    episodes = [(tuple(s), int(b)) for s, b in zip(result.starts, result.budgets, strict=True)]
+    assert len(episodes) == 4 * len(set(episodes)) == 4 * 4 * 2  # 4 winds × 4 cells × 2 budgets
+    parts = result.conditions["parts"]
+    assert [p["physics_config"]["wind_direction"] for p in parts] == list(COMPASS)
+    assert result.conditions["budgets"] == {"min": 4, "max": 8, "step": 4}  # shared by the winds
+    assert weather(result) == "3 m/s each of N/E/S/W + light turbulence"
+    with pytest.raises(ValueError, match="own conditions"):
+        concatenate([result, result], repeated=True)
+
+
 def test_calm_air_is_one_run_without_directions():
     result = evaluate_in_winds(SafeGreedyPlanner(), SMALL, 0.0, budgets=[5, 6], workers=1)
     assert weather(result) == "calm" and len(result.conditions["parts"]) == 1

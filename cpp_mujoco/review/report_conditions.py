@@ -67,7 +67,8 @@ def weather_summary(conditions: dict) -> str:
         return ""
     text = "calm" if not speed else f"{float(speed):g} m/s"
     if speed and directions:
-        text += " " + "/".join(dict.fromkeys(directions))
+        each = "each of " if conditions.get("directions") == "each" else ""
+        text += f" {each}" + "/".join(dict.fromkeys(directions))
     turbulence = env.get("turbulence")
     if turbulence and turbulence != "none":
         text += f" + {turbulence} turbulence"

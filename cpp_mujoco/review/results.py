@@ -198,7 +198,8 @@ def weather(result) -> str:
         text = "calm"
     else:
         dirs = [float(c.get("wind_direction", 0.0)) for c in configs]
-        text = f"{speed:g} m/s " + "/".join(COMPASS_NAMES.get(d, f"{d:g}°") for d in dirs)
+        each = "each of " if result.conditions.get("directions") == "each" else ""
+        text = f"{speed:g} m/s {each}" + "/".join(COMPASS_NAMES.get(d, f"{d:g}°") for d in dirs)
     levels = {c.get("turbulence", "none") for c in configs} - {"none"}
     gusts = {float(c.get("gust_std", 0.0)) for c in configs} - {0.0}
     return (
