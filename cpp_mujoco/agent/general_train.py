@@ -41,9 +41,9 @@ from cpp_mujoco.agent.map_pool import MapPool, MapwiseGuide
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay, record_pool_demonstrations
 from cpp_mujoco.agent.policy import GreedyAgent
-from cpp_mujoco.agent.run_folder import claim_run_folder
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.agent.train import Trainer
+from cpp_mujoco.agent.training_run import run_in_folder
 from cpp_mujoco.planners import make_planner
 
 REFERENCE_PLANNER = "safe-greedy"  # flown on the validation maps beside the final agent
@@ -198,11 +198,7 @@ def train_general(
 ) -> GeneralTrainer:
     """Train (or continue) a general run in ``out_dir``, locked meanwhile, as
     :func:`~cpp_mujoco.agent.training_run.train` does for one map; returns the trainer."""
-    with claim_run_folder(out_dir, resume=resume, overwrite=overwrite) as out:
-        trainer = GeneralTrainer(config, out)
-        if resume and trainer.resume():
-            print(f"resuming {out / 'checkpoint.pt'} at update {trainer.updates}")
-        elif resume:
-            print(f"--resume: no checkpoint.pt in {out}; starting a new run there")
-        trainer.run(progress=progress)
-    return trainer
+    return run_in_folder(
+        lambda out: GeneralTrainer(config, out), out_dir,
+        resume=resume, overwrite=overwrite, progress=progress,
+    )  # fmt: skip

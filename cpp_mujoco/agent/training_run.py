@@ -5,12 +5,17 @@ release it. Kept apart from the loop (:mod:`~cpp_mujoco.agent.train`) so the rul
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import TypeVar
 
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import check_can_start_from
 from cpp_mujoco.agent.run_folder import claim_run_folder
 from cpp_mujoco.agent.train import Trainer, initial_network
 from cpp_mujoco.maps import load_map
+
+T = TypeVar("T", bound=Trainer)
 
 
 def train(
@@ -30,8 +35,24 @@ def train(
     if config.init_from:  # a bad name or an unfit network fails before the folder is claimed
         start = initial_network(config)
         check_can_start_from(start, *load_map(config.map).shape, config.wind is not None)
+    return run_in_folder(
+        lambda out: Trainer(config, out, init_network=start), out_dir,
+        resume=resume, overwrite=overwrite, progress=progress,
+    )  # fmt: skip
+
+
+def run_in_folder(
+    make_trainer: Callable[[Path], T],
+    out_dir: str | os.PathLike,
+    *,
+    resume: bool,
+    overwrite: bool,
+    progress: bool,
+) -> T:
+    """Claim ``out_dir``, build the trainer in it, continue its checkpoint if asked, train: the
+    folder rules every trainer (per map or general) follows."""
     with claim_run_folder(out_dir, resume=resume, overwrite=overwrite) as out:
-        trainer = Trainer(config, out, init_network=start)
+        trainer = make_trainer(out)
         if resume and trainer.resume():
             print(f"resuming {out / 'checkpoint.pt'} at update {trainer.updates}")
         elif resume:
