@@ -11,7 +11,14 @@ import cpp_mujoco  # noqa: F401  (registers the envs)
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
-from cpp_mujoco.grid.wind import KIND_INDEX, GridWind, wind_costs
+from cpp_mujoco.grid.wind import (
+    KIND_INDEX,
+    MIN_COST_SHARE,
+    GridWind,
+    action_costs,
+    gust_shape,
+    wind_costs,
+)
 from cpp_mujoco.maps import GridMap
 
 # 5×5, landing block in the middle column, no-fly cell in the north-east corner
@@ -86,9 +93,9 @@ def test_under_one_unit_left_after_a_move_is_a_crash_and_a_landing_on_the_reserv
 COLUMN = GridMap.from_ascii(["TLT"] + ["TTT"] * 7, name="column")  # 7 cells south of the start
 
 
-def test_gust_costs_match_the_calibrated_mean_spread_and_correlation():
-    """4000 episodes flying six cells downwind at 9 m/s: the sampled costs have the flown mean
-    and spread, and consecutive costs the flown correlation (of their logs, the AR(1) state)."""
+def test_gust_costs_match_the_calibrated_mean_spread_correlation_and_skewness():
+    """4000 episodes flying six cells downwind at 9 m/s: the sampled costs have the flown mean,
+    spread and right tail (skewness), and consecutive costs the flown correlation."""
     n = 4000
     mdp = GridMDP(COLUMN, n, steady())
     mdp.reset(np.random.default_rng(1), budget=75)
@@ -102,8 +109,30 @@ def test_gust_costs_match_the_calibrated_mean_spread_and_correlation():
     m, s = TABLE.mean[row, KIND_INDEX["downwind"]], TABLE.std[row, KIND_INDEX["downwind"]]
     assert c.mean() == pytest.approx(m, rel=0.03)
     assert c.std() == pytest.approx(s, rel=0.1)
-    corr = np.corrcoef(np.log(c[:-1]).ravel(), np.log(c[1:]).ravel())[0, 1]
+    z = (c - c.mean()) / c.std()
+    assert np.mean(z**3) == pytest.approx(TABLE.skewness[row], abs=0.3)
+    assert TABLE.skewness[row] > 1.5  # far from a Gaussian's 0 and a log-normal's ≈ 0.8 here
+    corr = np.corrcoef(c[:-1].ravel(), c[1:].ravel())[0, 1]
     assert corr == pytest.approx(TABLE.correlation[row], abs=0.05)
+
+
+@pytest.mark.parametrize("skew, corr", [(0.0, 0.3), (0.33, 0.23), (2.07, 0.48), (2.75, 0.39)])
+def test_the_gust_shape_solves_the_skewness_and_correlation_it_is_given(skew, corr):
+    """z = a·g + b·(g² − 1) with a² + 2b² = 1 over an AR(1) g with ρ_g: moments in closed form
+    (E z³ = 6a²b + 8b³, corr = a²ρ_g + 2b²ρ_g²), so the solve is checked exactly."""
+    b, rho = gust_shape(np.array([skew]), np.array([corr]))
+    a2 = 1 - 2 * b[0] ** 2
+    assert 6 * a2 * b[0] + 8 * b[0] ** 3 == pytest.approx(skew, abs=1e-4)
+    assert a2 * rho[0] + 2 * b[0] ** 2 * rho[0] ** 2 == pytest.approx(corr, abs=1e-9)
+
+
+def test_a_gust_never_makes_an_action_free():
+    """The quadratic term's floor (−a²/4b − b) times a large spread would go below zero; the
+    cost stops at MIN_COST_SHARE of the mean."""
+    mean, std = np.array([[1.0] * 5]), np.array([[2.0] * 5])
+    b, g = np.array([0.5]), np.array([-0.707])  # z at its minimum, −0.75: 1 − 1.5 < 0
+    cost = action_costs(np.array([0]), mean, std, b, g, True)
+    assert cost[0] == pytest.approx(MIN_COST_SHARE)
 
 
 def test_calm_air_costs_the_calibrated_calm_move_with_no_spread():
