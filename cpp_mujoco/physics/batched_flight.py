@@ -242,7 +242,7 @@ class BatchedFlight:
         """The tick loop of :meth:`Flight._fly` over the drones still flying: one control tick
         for all of them (:meth:`_tick`), then their physics steps (one C call)."""
         k, dt = self.k, self.dt
-        while a.flying.any():
+        while np.count_nonzero(a.flying):
             go = self._tick(np.flatnonzero(a.flying), a)
             if go.size:
                 self._step(go, k)
@@ -291,7 +291,7 @@ class BatchedFlight:
             )  # fmt: skip
         # ---- camera frames due, then: is the action done?
         due = ~ended & (t0[i] + t[i] >= self.camera.next_frame[i])
-        if due.any():
+        if np.count_nonzero(due):
             res["newly_seen"][i[due]] += self.camera.capture(i[due])
         ti = t[i]
         for j in np.flatnonzero(~ended & (~on | a.land[i])).tolist():
@@ -315,7 +315,7 @@ class BatchedFlight:
                 res["failure"][d] = "no touchdown within the landing time limit"
                 ended[j] = True
         cruise = ~ended & on & ~a.land[i] & (ti >= a.nominal[i])
-        if cruise.any():
+        if np.count_nonzero(cruise):
             g = pos - goal[i]
             near = (g * g).sum(1) < pos_tol2
             slow = (vel * vel).sum(1) < vel_tol2
@@ -324,7 +324,7 @@ class BatchedFlight:
             ended |= got | (cruise & (ti >= a.limit[i] - 1e-9))
         a.flying[i[ended]] = False
         keep = ~ended
-        if not keep.any():
+        if not np.count_nonzero(keep):
             return i[keep]
         go = i[keep]
         self._control(go, pos[keep], vel[keep], R[keep], qv[keep, 3:], act[keep], p_ref[keep],
@@ -339,8 +339,9 @@ class BatchedFlight:
         w = self.wind.velocity(i, pos, dt)  # every tick: the gusts advance for every drone
         f = np.zeros((i.size, 4))
         on = self.motors_on[i]
-        if on.any():
-            if on.all():  # the common case: views instead of copies
+        n_on = np.count_nonzero(on)
+        if n_on:
+            if n_on == len(on):  # the common case: views instead of copies
                 on = slice(None)
             j = i[on]
             self.controller.observe(j, vel[on], R[on], act[on], dt)
@@ -349,7 +350,8 @@ class BatchedFlight:
             air = air_in_body(vel[on], w[on], R[on]) if self.energy_of.ff is not None else None
             drawn = self.battery.draw(j, self.energy_of(act[on], f_on, air) / dt, dt)
             cut = np.isnan(drawn)
-            if cut.any():  # the pack cannot carry the load: the motors stop, a fall begins
+            # the pack cannot carry the load: the motors stop, a fall begins
+            if np.count_nonzero(cut):
                 self.motors_on[j[cut]] = False
                 self.battery.current[j[cut]] = 0.0
                 f_on[cut] = 0.0
@@ -362,7 +364,7 @@ class BatchedFlight:
                 ~cut & ~a.begun_landing[j] & (emergency[j] == None)  # noqa: E711
                 & (self.battery.below_cutoff[j] | (self.energy_used[j] >= self.capacity[j]))
             )  # fmt: skip
-            if fail.any():  # the battery failsafe: land where it is, on the reserve
+            if np.count_nonzero(fail):  # the battery failsafe: land where it is, on the reserve
                 d = j[fail]
                 p = pos[on][fail]
                 emergency[d] = np.where(self.battery.below_cutoff[d], CUTOFF, EMERGENCY_LANDING)

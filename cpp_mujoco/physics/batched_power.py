@@ -22,62 +22,89 @@ _SQRT3 = math.sqrt(3.0)
 
 
 class BatchedEnergy:
-    """:class:`IntervalEnergy` (with its forward-flight ratio, if any) for n drones."""
+    """:class:`IntervalEnergy` (with its forward-flight ratio, if any) for n drones. The
+    per-step terms of all drones are one (substeps, n, 4) array: a handful of numpy calls per
+    tick instead of one per term."""
 
     def __init__(self, scalar: IntervalEnergy):
         self.s = scalar
         self.decay = np.array(scalar.decay)
-        ff = scalar.forward
-        self.ff = ff
+        self._weights = self.decay[:, None, None]
+        self.ff = scalar.forward
+        p = scalar.power
+        self._coef, self._idle, self._dt = p.coef, p.avionics * len(scalar.decay), scalar.dt
 
     def __call__(self, act0: np.ndarray, ctrl: np.ndarray, air: np.ndarray | None) -> np.ndarray:
         """J of one control interval per drone: (n, 4) rotor states and commands, (n, 3) air."""
-        s, d = self.s, act0 - ctrl
-        rotor = np.zeros_like(ctrl)
-        for w in s.decay:  # summed step by step, as the scalar loop does
-            t = ctrl + d * w
-            rotor = rotor + t * np.sqrt(t)
+        d = act0 - ctrl
+        t = ctrl + d * self._weights  # (substeps, n, 4): the rotor state of every step
+        p = t * np.sqrt(t)
+        rotor = p[0].copy()  # summed step by step, as the scalar loop does (0.0 + x is x)
+        for k in range(1, len(p)):
+            rotor += p[k]
         if self.ff is not None and air is not None:
-            t = ctrl + d * s.mean_decay
+            t = ctrl + d * self.s.mean_decay
             v_par = np.hypot(air[:, 0], air[:, 1])[:, None]
             v_perp = air[:, 2][:, None]
-            positive = t > 0.0
-            ratio = self.ratio(np.where(positive, t, 1.0), v_par, v_perp)
-            rotor = np.where(positive, rotor * ratio, rotor)
-        total = rotor[:, 0] + rotor[:, 1] + rotor[:, 2] + rotor[:, 3]
-        p = s.power
-        return (p.coef * total + p.avionics * len(s.decay)) * s.dt
+            if np.count_nonzero(t > 0.0) == t.size:  # the common case, without the masks
+                rotor *= self.ratio(t, v_par, v_perp)
+            else:
+                positive = t > 0.0
+                ratio = self.ratio(np.where(positive, t, 1.0), v_par, v_perp)
+                rotor = np.where(positive, rotor * ratio, rotor)
+        total = rotor[:, 0] + rotor[:, 1]
+        total += rotor[:, 2]
+        total += rotor[:, 3]
+        total *= self._coef
+        total += self._idle
+        total *= self._dt
+        return total
 
     def ratio(self, thrust, v_par, v_perp) -> np.ndarray:
-        """:meth:`ForwardFlightPower.ratio` elementwise (thrust > 0)."""
+        """:meth:`ForwardFlightPower.ratio` elementwise (thrust > 0); ``v_par``, ``v_perp``
+        (n, 1). In-place updates keep each expression's order (see the scalar ``_solve``)."""
         ff = self.ff
         vh2 = thrust * ff.inv_2rho_a
         vh = np.sqrt(vh2)
         vp = np.maximum(v_perp, -ff.vrs * vh)
-        v = -0.5 * vp + np.sqrt(0.25 * vp * vp + vh2)
-        moving = np.broadcast_to(v_par != 0.0, v.shape)
-        if moving.all():  # the common case, without the masks
-            vpar = np.broadcast_to(v_par, v.shape)
+        v = np.sqrt(0.25 * vp * vp + vh2)
+        v += -0.5 * vp
+        moving = v_par != 0.0
+        n_moving = np.count_nonzero(moving)
+        if n_moving:
+            vpar = v_par if n_moving == len(v_par) else np.where(moving, v_par, 1.0)
             vpar2, vh4 = vpar * vpar, vh2 * vh2
             w = np.where(vh2 < v * vpar, vh2 / vpar, v)
+            if n_moving < len(v_par):
+                w = np.where(moving, w, v)
+            sw, q, num, den = (np.empty_like(w) for _ in range(4))
             for _ in ff.steps:
-                q = (w + vp) * (w + vp) + vpar2
-                sw = w + vp
-                w = w - (w * w * q - vh4) / (2.0 * w * (q + w * sw))
-            v = w
-        elif moving.any():
-            vpar = np.broadcast_to(v_par, v.shape)
-            safe = np.where(moving, vpar, 1.0)
-            vpar2, vh4 = vpar * vpar, vh2 * vh2
-            w = np.where(moving & (vh2 < v * vpar), vh2 / safe, v)
-            for _ in ff.steps:
-                q = (w + vp) * (w + vp) + vpar2
-                sw = w + vp
-                w = w - (w * w * q - vh4) / (2.0 * w * (q + w * sw))
-            v = np.where(moving, w, v)
+                np.add(w, vp, out=sw)  # s = v + vp
+                np.multiply(sw, sw, out=q)
+                q += vpar2  # q = s·s + vpar²
+                np.multiply(w, w, out=num)
+                num *= q
+                num -= vh4  # v·v·q − vh⁴
+                np.multiply(w, sw, out=den)
+                den += q
+                np.multiply(2.0 * w, den, out=den)  # 2v·(q + v·s)
+                num /= den
+                w -= num
+            v = w if n_moving == len(v_par) else np.where(moving, w, v)
         mu2 = v_par * v_par * ff.ct_rho_a / thrust
-        r = (ff.kappa * v + ff.fm * vp) / vh + ff.p0 * (1.0 + ff.k_mu * mu2)
-        return np.maximum(r, 0.0)
+        r = ff.kappa * v
+        r += ff.fm * vp
+        r /= vh
+        mu2 *= ff.k_mu
+        mu2 += 1.0
+        mu2 *= ff.p0
+        r += mu2
+        return np.maximum(r, 0.0, out=r)
+
+
+_A_B = _A / _B
+_C0, _C1, _C2, _C3 = _C
+_C1_2, _C2_3 = _C1 / 2, _C2 / 3
 
 
 def _ocv(soc):
@@ -86,8 +113,20 @@ def _ocv(soc):
 
 
 def _ocv_integral(s):
-    c0, c1, c2, c3 = _C
-    return _A / _B * (np.exp(-_B * s) - 1.0) + s * (c0 + s * (c1 / 2 + s * (c2 / 3 + s * c3 / 4)))
+    """A/B·(e^(−B·s) − 1) + s·(c0 + s·(c1/2 + s·(c2/3 + s·c3/4))), in that order."""
+    e = np.exp(-_B * s)
+    e -= 1.0
+    e *= _A_B
+    p = s * _C3
+    p /= 4
+    p += _C2_3
+    p *= s
+    p += _C1_2
+    p *= s
+    p += _C0
+    p *= s
+    p += e  # x + y == y + x
+    return p
 
 
 class BatchedBattery:
@@ -103,6 +142,7 @@ class BatchedBattery:
         self.below_cutoff = np.zeros(n, dtype=bool)
         self.failure = np.full(n, None, dtype=object)
         self._scalar = Battery(spec)
+        self._f_soc = _ocv_integral(self.soc)  # F(soc) per pack, for the next draw's f0
 
     def reset(self, i: int, capacity_j: float) -> None:
         b = self._scalar
@@ -110,6 +150,7 @@ class BatchedBattery:
         self.charge_c[i], self.soc[i], self.current[i] = b.charge_c, b.soc, 0.0
         self.drawn_j[i] = self.load_j[i] = self.loss_j[i] = 0.0
         self.below_cutoff[i], self.failure[i] = False, None
+        self._f_soc[i] = _ocv_integral(self.soc[i : i + 1])[0]
 
     def voltage(self) -> np.ndarray:
         s = self.spec
@@ -154,6 +195,7 @@ class BatchedBattery:
         chem = v * current * dt
         good, bad = i[ok], i[~ok]
         self.soc[good] = np.maximum(s1[ok], 0.0)
+        self._f_soc[good] = _ocv_integral(self.soc[good])
         self.current[good] = current[ok]
         self.below_cutoff[good] = (v - current * r < n * s.cutoff_v)[ok]
         self.drawn_j[good] += chem[ok]
@@ -165,21 +207,38 @@ class BatchedBattery:
     def _draw_finite(self, i, power, dt, n, r, q, s0) -> np.ndarray | None:
         """:meth:`draw` when every pack is finite, loaded and able to carry its load (the
         common case, without the masks); None when one is not (then the general path runs:
-        nothing has changed yet)."""
-        f0 = _ocv_integral(s0)
+        nothing has changed yet). ``F(s0)`` is the one the last draw ended on, kept per pack
+        (:attr:`_f_soc`): the same double, not computed again."""
+        f0 = self._f_soc[i]
         four_rp = 4.0 * r * power
         two_p = 2.0 * power
         v = n * _ocv(s0)
-        for _ in range(4):  # the first current, then three passes of the mean OCV
-            disc = v * v - four_rp
-            if (disc < 0.0).any():
-                return None
-            current = two_p / (v + np.sqrt(disc))
-            s1 = s0 - current * dt / q
-            v = n * (f0 - _ocv_integral(s1)) / (s0 - s1)
+        dmin = None
+        with np.errstate(invalid="ignore"):  # a pack that cannot: NaNs, then the general path
+            for _ in range(4):  # the first current, then three passes of the mean OCV
+                disc = v * v
+                disc -= four_rp
+                dmin = disc if dmin is None else np.fmin(dmin, disc, out=dmin)
+                current = np.sqrt(disc)
+                current += v
+                np.divide(two_p, current, out=current)
+                s1 = current * dt
+                s1 /= q
+                np.subtract(s0, s1, out=s1)
+                f1 = _ocv_integral(s1)
+                v = f0 - f1
+                v *= n
+                v /= s0 - s1
+        if np.count_nonzero(dmin < 0.0):
+            return None
         loss = current * current * r * dt
         chem = v * current * dt
-        self.soc[i] = np.maximum(s1, 0.0)
+        soc = np.maximum(s1, 0.0)
+        self.soc[i] = soc
+        clipped = s1 < 0.0  # soc 0 (F(0) = 0.0, as _ocv_integral gives it)
+        if np.count_nonzero(clipped):
+            f1[clipped] = _ocv_integral(soc[clipped])
+        self._f_soc[i] = f1
         self.current[i] = current
         self.below_cutoff[i] = v - current * r < n * self.spec.cutoff_v
         self.drawn_j[i] += chem
