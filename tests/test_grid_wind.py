@@ -8,6 +8,7 @@ import pytest
 import torch
 
 import cpp_mujoco  # noqa: F401  (registers the envs)
+from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
@@ -133,6 +134,34 @@ def test_a_gust_never_makes_an_action_free():
     b, g = np.array([0.5]), np.array([-0.707])  # z at its minimum, −0.75: 1 − 1.5 < 0
     cost = action_costs(np.array([0]), mean, std, b, g, True)
     assert cost[0] == pytest.approx(MIN_COST_SHARE)
+
+
+def _downwind_costs(n: int, config: GridConfig, moves: int = 6) -> np.ndarray:
+    mdp = GridMDP(COLUMN, n, config)
+    mdp.reset(np.random.default_rng(1), budget=75)
+    costs = []
+    for _ in range(moves):
+        before = mdp.budget.copy()
+        mdp.step(np.full(n, SOUTH))
+        costs.append(before - mdp.budget)
+    return np.array(costs)
+
+
+def test_the_gust_scale_widens_each_episodes_spread_by_its_own_factor():
+    """gust_scale (2, 2) doubles the spread and keeps the mean; (1, 2) gives each episode its
+    own factor, so the episodes' spreads differ — from the same winds and gust streams."""
+    base = _downwind_costs(4000, steady())
+    double = _downwind_costs(4000, steady(gust_scale=(2.0, 2.0)))
+    assert double.std() == pytest.approx(2 * base.std(), rel=0.02)
+    assert double.mean() == pytest.approx(base.mean(), rel=0.03)
+    mixed = _downwind_costs(200, steady(gust_scale=(1.0, 2.0)), moves=40)
+    spread = mixed.std(axis=0)  # per episode
+    assert spread.max() > 1.6 * spread.min()
+    np.testing.assert_array_equal(mixed, _downwind_costs(200, steady(gust_scale=(1.0, 2.0)), 40))
+    with pytest.raises(ValueError, match="gust_scale"):
+        GridWind(gust_scale=(1.0, float("nan")))
+    with pytest.raises(ValueError, match="wind option"):
+        TrainConfig(map="B", wind_gust_scale=1.5)  # no wind: the scale would do nothing
 
 
 def test_calm_air_costs_the_calibrated_calm_move_with_no_spread():

@@ -38,6 +38,7 @@ _HELP = {
     "updates_per_step": "gradient updates per vector step of num-envs environment steps",
     "wind_max_speed": "train in the grid's wind option, winds up to this m/s (0 = the paper)",
     "wind_calm_fraction": "share of calm-air training episodes with the wind option",
+    "wind_gust_scale": "wind option: each episode's gust spread × a factor uniform in 1..this",
     "init_from": "start from this agent's weights (bundled name or file; empty = random)",
     "guide": "reference planner that drives the guided environments",
     "guide_fraction": "fraction of environments the guide drives at the start (0 = the paper)",

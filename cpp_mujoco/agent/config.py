@@ -25,6 +25,9 @@ class TrainConfig:
     # 0 = the paper's MDP, one unit per action
     wind_max_speed: float = 0.0
     wind_calm_fraction: float = 0.2  # share of training episodes in calm air (wind option)
+    # each wind episode's gust spread is the calibrated one times a factor uniform over
+    # 1..wind_gust_scale (GridWind.gust_scale; 1 = the calibrated moderate turbulence only)
+    wind_gust_scale: float = 1.0
     # start from this agent's weights (bundled name or file; "" = random init). A wind network
     # started from a calm one gets zero weights on its wind inputs: it first acts as that agent
     init_from: str = ""
@@ -119,8 +122,14 @@ class TrainConfig:
     def wind(self):
         """The grid's wind option this config trains in (None: the paper's unit costs)."""
         if not self.wind_max_speed:
+            if self.wind_gust_scale != 1.0:
+                raise ValueError("wind_gust_scale needs the wind option (wind_max_speed > 0)")
             return None
-        return GridWind(max_speed=self.wind_max_speed, calm_fraction=self.wind_calm_fraction)
+        return GridWind(
+            max_speed=self.wind_max_speed,
+            calm_fraction=self.wind_calm_fraction,
+            gust_scale=(1.0, self.wind_gust_scale),
+        )
 
     @property
     def input_budget_scale(self) -> float:

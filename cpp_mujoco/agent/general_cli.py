@@ -19,7 +19,7 @@ from cpp_mujoco.agent.general_config import UNUSED, GeneralTrainConfig
 from cpp_mujoco.cli import TRAIN_GENERAL_HELP as HELP  # the light parser's line: the same
 
 COMMAND = "train-general"
-EXCLUDED = (*UNUSED, "wind_max_speed", "wind_calm_fraction")
+EXCLUDED = (*UNUSED, "wind_max_speed", "wind_calm_fraction", "wind_gust_scale")
 _GENERAL_HELP = {
     "sizes": "map sides trained together, each flown with its size class's budgets",
     "maps_per_size": "generated training maps of each size (seeds map-seed on)",

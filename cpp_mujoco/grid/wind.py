@@ -48,9 +48,17 @@ class GridWind:
     calm_fraction: float = 0.2  # share of episodes in calm air (exactly 0 m/s)
     directions: tuple[str, ...] = COMPASS  # compass directions the wind may blow from
     turbulence: bool = True  # draw gust costs (moderate turbulence); False: the means only
+    # per-episode multiplier of the calibrated gust spread, uniform over this range: the
+    # turbulence intensity of a day is uncertain (MIL-F-8785C gives σ only by probability of
+    # exceedance), and one calibrated intensity taught the agents too thin a margin
+    gust_scale: tuple[float, float] = (1.0, 1.0)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "directions", tuple(self.directions))
+        object.__setattr__(self, "gust_scale", tuple(float(v) for v in self.gust_scale))
+        lo, hi = self.gust_scale
+        if not (np.isfinite([lo, hi]).all() and 0.0 < lo <= hi <= 4.0):
+            raise ValueError(f"gust_scale must be (lo, hi) with 0 < lo <= hi <= 4, got {lo, hi}")
         speeds = (self.min_speed, self.max_speed, self.calm_fraction)
         if not all(np.isfinite(speeds)):
             raise ValueError(f"wind speeds and calm_fraction must be finite, got {speeds}")
@@ -156,15 +164,25 @@ def wind_velocity(speed: np.ndarray, wind_from: np.ndarray) -> np.ndarray:
     return np.round(velocity, 6).astype(np.float32)  # sin(180°) is 1e-16, not 0
 
 
+def _mix(x: np.ndarray) -> np.ndarray:
+    """splitmix64's finaliser (uint64 in, uint64 out; wraps around by design)."""
+    x = x + np.uint64(0x9E3779B97F4A7C15)
+    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return x ^ (x >> np.uint64(31))
+
+
+def gust_uniform(key: np.ndarray) -> np.ndarray:
+    """One uniform in [0, 1) per gust key, apart from the key's gust stream (the episode's
+    turbulence intensity: no extra draw from the reset generator, so seeds keep their winds)."""
+    with np.errstate(over="ignore"):
+        a = _mix(np.asarray(key).astype(np.uint64) ^ np.uint64(0xD1B54A32D192ED03))
+    return (a >> np.uint64(11)).astype(np.float64) / 2.0**53
+
+
 def gust_normal(key: np.ndarray, step: np.ndarray) -> np.ndarray:
     """Standard normal draws, one per (key, step): splitmix64 of the pair, then Box–Muller."""
-
-    def mix(x: np.ndarray) -> np.ndarray:
-        x = x + np.uint64(0x9E3779B97F4A7C15)
-        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        return x ^ (x >> np.uint64(31))
-
+    mix = _mix
     with np.errstate(over="ignore"):
         key, step = np.asarray(key).astype(np.uint64), np.asarray(step).astype(np.uint64)
         a = mix(key ^ mix(step))
@@ -242,8 +260,8 @@ class EpisodeWinds:
     def draw(self, idx, u: np.ndarray) -> None:
         """New episodes' winds from uniforms ``u`` (k, 3) (:meth:`GridWind.draw`)."""
         speed, wind_from, key = self.option.draw(u)
+        self.gust_key[idx] = key  # first: the episode's gust intensity derives from it
         self.set(idx, speed, wind_from)
-        self.gust_key[idx] = key
 
     def set(self, idx, speed, wind_from) -> None:
         """The steady wind of envs ``idx``; the gust stream starts again."""
@@ -259,6 +277,8 @@ class EpisodeWinds:
             self.mean, self.std, self.quadratic, self.rho = episode_costs(
                 self.wind_speed, self.table
             )
+            lo, hi = self.option.gust_scale  # each episode's turbulence intensity
+            self.std = self.std * (lo + (hi - lo) * gust_uniform(self.gust_key))[:, None]
 
     def costs(self, actions, rejected, lands, active) -> np.ndarray:
         """Each active env's action cost in its episode's wind; the gust streams of active envs
