@@ -48,7 +48,7 @@ def budgets_summary(budgets: Any) -> str:
 
 def weather_summary(conditions: dict) -> str:
     """The weather of a result as the tables' weather cells show it (``9 m/s N/E/S/W + moderate
-    turbulence``, ``calm``; :func:`~cpp_mujoco.review.results.weather`), from its
+    turbulence``, ``calm``), from its
     ``physics_config``, ``env_kwargs`` or flat keys, and the directions of its parts."""
     env = {
         **{k: v for k, v in conditions.items() if not isinstance(v, dict | list)},

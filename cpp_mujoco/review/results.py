@@ -186,27 +186,11 @@ def wind_row(result) -> dict:
 
 
 def weather(result) -> str:
-    """The weather a MuJoCo result was flown in, as one cell (``calm``,
-    ``9 m/s N/E/S/W + moderate turbulence``)."""
-    from cpp_mujoco.wind_protocol import COMPASS_NAMES
+    """The weather a result was flown in, as one cell (``calm``, ``9 m/s N/E/S/W + moderate
+    turbulence``): :func:`~cpp_mujoco.review.report_conditions.weather_summary`, the one rule."""
+    from cpp_mujoco.review.report_conditions import weather_summary
 
-    parts = result.conditions.get("parts") or [{}]
-    config = result.conditions.get("physics_config") or {}
-    configs = [{**config, **(p.get("physics_config") or {})} for p in parts]
-    speed = wind_speed(result)
-    if not speed:
-        text = "calm"
-    else:
-        dirs = [float(c.get("wind_direction", 0.0)) for c in configs]
-        each = "each of " if result.conditions.get("directions") == "each" else ""
-        text = f"{speed:g} m/s {each}" + "/".join(COMPASS_NAMES.get(d, f"{d:g}°") for d in dirs)
-    levels = {c.get("turbulence", "none") for c in configs} - {"none"}
-    gusts = {float(c.get("gust_std", 0.0)) for c in configs} - {0.0}
-    return (
-        text
-        + "".join(f" + {t} turbulence" for t in sorted(levels))
-        + "".join(f" + gusts σ {g:g}" for g in sorted(gusts))
-    )
+    return weather_summary(result.conditions) or "calm"
 
 
 RATED_COLUMNS = [
