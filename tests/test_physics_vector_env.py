@@ -83,6 +83,30 @@ def test_batched_equals_single_envs_in_turbulent_wind_with_the_guard():
     assert "landed" in ended.values()
 
 
+def test_a_gust_seed_flies_other_gusts_for_the_same_episodes_alike_in_both_envs():
+    """``gust_seed`` > 0: the same starts and budgets meet other gust histories (energies
+    differ from the episode's own gusts), the same in the batched and the single env; 0 is the
+    episode's own generator, unchanged."""
+
+    def actions(step, n):  # out and back, then land
+        return np.full(n, (0, 2, 4)[min(step, 2)])
+
+    wind = {"wind_speed": 9.0, "turbulence": "moderate"}
+
+    def energies(**extra):
+        env = gym.make("cpp_mujoco/MuJoCo-v0", map=MAP, **wind, **extra).unwrapped
+        env.reset(seed=5, options={"start": (2, 2), "budget": 20})
+        return [env.step(int(a))[4]["energy_used_j"] for a in actions(0, 1).tolist() * 2]
+
+    own, again, held_out = energies(), energies(gust_seed=0), energies(gust_seed=1)
+    assert own == again and own != held_out
+    assert energies(gust_seed=1) == held_out  # a gust seed is a seed: reproducible
+    ended = _fly_both({**wind, "gust_seed": 7}, [6, 9, 12], actions, steps=6)
+    assert len(ended) == 3
+    with pytest.raises(ValueError, match="gust_seed"):
+        gym.make("cpp_mujoco/MuJoCo-v0", map=MAP, gust_seed=-1)
+
+
 def test_batched_equals_single_envs_when_the_budget_runs_out():
     """A policy that never lands: emergency landings, budget exhaustion and hovers (rejected
     moves at the edge) end each episode exactly as in the single env."""

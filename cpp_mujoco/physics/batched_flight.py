@@ -147,7 +147,7 @@ class BatchedFlight:
         st[i, self.cols[2]] = hover
         self.sims.forward([i])
         self.controller.reset(i)
-        self.wind.reset(i, rng)
+        self.wind.reset(i, self.config.gust_rng(rng))
         self.capacity[i] = capacity
         self.battery.reset(i, capacity)
         self.energy_used[i] = 0.0

@@ -23,7 +23,7 @@ from cpp_mujoco.physics.turbulence import check_level
 # fields that do not change how a calm-air move flies (so they do not change the energy unit)
 _NOT_CALIBRATED = {
     "wind_speed", "wind_direction", "gust_std", "gust_tau", "turbulence", "unit_margin",
-    "battery_cutoff_v", "return_guard",
+    "battery_cutoff_v", "return_guard", "gust_seed",
 }  # fmt: skip
 
 _INF = math.inf
@@ -200,6 +200,10 @@ class PhysicsConfig:
     # Dryden turbulence (MIL-F-8785C, low altitude) on top: "none", "light", "moderate",
     # "severe" (W20 = 15 / 30 / 45 kt); see cpp_mujoco/physics/turbulence.py
     turbulence: str = "none"
+    # 0: an episode's gusts come from its own generator (seeded by the episode's seed); k > 0:
+    # from a generator seeded by (k, one draw of it) — other gust histories for the very same
+    # episodes, e.g. held-out gust seeds to choose agents on without touching the protocol's
+    gust_seed: int = 0
     # --- rotor power (cpp_mujoco/physics/energy.py, docs/power.md): "forward-flight" (Glauert
     # induced velocity with the airspeed through each disk, profile and drag power) or
     # "momentum" (hover momentum theory, airspeed-blind); both give the same hover in still air
@@ -222,6 +226,13 @@ class PhysicsConfig:
         ``gust_tau`` (division), a timestep the controller rate cannot be made of."""
         _check_numbers(self, _RANGES)
         check_level(self.turbulence, self.altitude)
+        if (
+            isinstance(self.gust_seed, (bool, np.bool_))
+            or not isinstance(self.gust_seed, numbers.Integral)
+            or not 0 <= self.gust_seed < 2**63
+        ):
+            raise ValueError(f"gust_seed must be an integer >= 0, got {self.gust_seed!r}")
+        object.__setattr__(self, "gust_seed", int(self.gust_seed))
         if not isinstance(self.return_guard, (bool, np.bool_)):
             raise ValueError(f"return_guard must be True or False, got {self.return_guard!r}")
         object.__setattr__(self, "return_guard", bool(self.return_guard))
@@ -246,6 +257,12 @@ class PhysicsConfig:
                 f"land_time_limit ({self.land_time_limit}) must be at least land_duration "
                 f"({self.land_duration})"
             )
+
+    def gust_rng(self, rng: np.random.Generator) -> np.random.Generator:
+        """The generator an episode's gusts are drawn from (:attr:`gust_seed`)."""
+        if not self.gust_seed:
+            return rng
+        return np.random.default_rng([self.gust_seed, int(rng.integers(2**63))])
 
     @property
     def substeps(self) -> int:

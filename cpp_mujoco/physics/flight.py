@@ -157,7 +157,7 @@ class Flight:
         d.act[:] = hover
         mujoco.mj_forward(m, d)
         self.controller.reset()
-        self.wind.reset(rng if rng is not None else np.random.default_rng(0))
+        self.wind.reset(self.config.gust_rng(rng if rng is not None else np.random.default_rng(0)))
         self.capacity = capacity
         self.battery.reset(capacity)
         self.energy_used = 0.0
