@@ -182,11 +182,10 @@ def gust_uniform(key: np.ndarray) -> np.ndarray:
 
 def gust_normal(key: np.ndarray, step: np.ndarray) -> np.ndarray:
     """Standard normal draws, one per (key, step): splitmix64 of the pair, then Box–Muller."""
-    mix = _mix
     with np.errstate(over="ignore"):
         key, step = np.asarray(key).astype(np.uint64), np.asarray(step).astype(np.uint64)
-        a = mix(key ^ mix(step))
-        b = mix(a)
+        a = _mix(key ^ _mix(step))
+        b = _mix(a)
     u1 = ((a >> np.uint64(11)).astype(np.float64) + 0.5) / 2.0**53  # (0, 1)
     u2 = (b >> np.uint64(11)).astype(np.float64) / 2.0**53
     return np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)
