@@ -17,7 +17,7 @@ import numpy as np
 from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, bundled_maps, load_map
-from cpp_mujoco.physics.protocol import EPISODES_PER_CHUNK
+from cpp_mujoco.physics.protocol import chunk_count
 from cpp_mujoco.review.results import (
     DEMO_GRID_COLUMNS,
     TRANSFER_COLUMNS,
@@ -65,7 +65,7 @@ def run_demo(
             grid_table.rows.append(protocol_row(grid))
             physics = evaluate(
                 policy, grid_map, backend="mujoco", budgets=budgets, policy_name=name,
-                workers=workers if episodes > EPISODES_PER_CHUNK else 1, progress=progress,
+                workers=workers if chunk_count(episodes) > 1 else 1, progress=progress,
             )  # fmt: skip
             physics.to_json(out / f"mujoco_{label}_{safe}.json")
             grid_same = evaluate(policy, grid_map, budgets=budgets, policy_name=name)

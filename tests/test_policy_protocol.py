@@ -267,3 +267,17 @@ def test_worker_failures_end_the_run_with_the_workers_error():
     assert "wind_sped" in message and seconds < 10  # rejected in the parent, no worker started
     assert out["episode 0"][:2] == ["RuntimeError", "policy failed in episode 0"]
     assert out["unpickle"][:2] == ["RuntimeError", "cannot restore this policy in a worker"]
+
+
+def test_physics_chunks_hold_every_episode_once_longest_first():
+    from cpp_mujoco.physics.protocol import chunk_count, chunks
+
+    tasks = [(i, (0, i % 36), 25 + i // 36) for i in range(1836)]  # map A's protocol shape
+    count = chunk_count(len(tasks))
+    assert count == 10 and chunk_count(396) == 4 and chunk_count(40) == 1  # not the workers
+    parts = chunks(tasks, count)
+    assert len(parts) == count and {len(p) for p in parts} == {183, 184}
+    assert sorted(t for part in parts for t in part) == tasks
+    budgets = [[t[2] for t in part] for part in parts]
+    assert all(b == sorted(b) for b in budgets)  # each chunk a run of similar budgets …
+    assert budgets[0][-1] == 75 and budgets[-1][0] == 25  # … the longest chunk first

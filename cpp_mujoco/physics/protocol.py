@@ -49,10 +49,14 @@ from cpp_mujoco.episode import EpisodeRecord, run_vector_episodes
 from cpp_mujoco.io import atomic_write_bytes
 
 ENGINES = ("local", "ray")  # this machine's process pool, or Ray (an optional extra)
-# episodes per worker task, flown together in one batched env: enough drones to spread the
-# control tick's numpy overhead (measured: `python -m cpp_mujoco.physics.benchmark --batched`),
-# few enough that a run has several tasks per worker and a failure ends it soon
-EPISODES_PER_CHUNK = 72
+# A worker's task is a chunk of episodes flown together in one batched env. The control tick
+# costs a fixed ≈ 0.5 ms of numpy calls plus a share per drone, so bigger batches fly more
+# episodes per second (one core, 288 episodes of map A: batches of 72 took 1.4× as long as one
+# batch of 288). A run is cut into chunks of EPISODES_PER_CHUNK episodes on average, whatever
+# the workers: a policy's batches, so a stochastic policy's draws, never depend on the engine
+# or the worker count (the protocol on map A: 10 chunks, 5 per worker on 2 cores)
+EPISODES_PER_CHUNK = 192
+MIN_CHUNKS, MIN_EPISODES_PER_CHUNK = 4, 48
 
 Task = tuple[int, tuple[int, int], int]  # (episode index, start cell, budget)
 
@@ -160,12 +164,25 @@ def fly_tasks(envs: VectorEnvs, policy, tasks: list[Task]) -> list[EpisodeRecord
         raise
 
 
-def chunks(tasks: list[Task], size: int = EPISODES_PER_CHUNK) -> list[list[Task]]:
-    """``tasks`` ordered by budget, ``size`` at a time: the unit of work a worker is given.
-    Episodes of one budget last about as long, so a batch's drones finish together instead of
-    most of them waiting for one long episode. The same chunks on every engine."""
+def chunk_count(episodes: int) -> int:
+    """How many chunks a run of ``episodes`` is cut into (see :data:`EPISODES_PER_CHUNK`): at
+    least :data:`MIN_CHUNKS` of at least :data:`MIN_EPISODES_PER_CHUNK`, so a small run still
+    spreads over a few workers."""
+    few = min(MIN_CHUNKS, -(-episodes // MIN_EPISODES_PER_CHUNK))
+    return max(1, few, round(episodes / EPISODES_PER_CHUNK))
+
+
+def chunks(tasks: list[Task], count: int) -> list[list[Task]]:
+    """``tasks`` ordered by budget, cut into ``count`` chunks of (nearly) equal size: episodes
+    of similar budgets last about as long, so a batch's drones finish together instead of most
+    of them waiting for one long episode. The chunks of the largest budgets come first: the
+    longest start first and the short ones fill the workers' ends. (Equal budget sums are no
+    better: a policy lands long budgets early, so their chunks fly fewer steps.) The same chunks
+    on every engine; a deterministic policy flies the same episode in any chunk, a stochastic
+    one's draws depend on its batch."""
     ordered = sorted(tasks, key=lambda task: (task[2], task[0]))
-    return [ordered[i : i + size] for i in range(0, len(ordered), size)]
+    bounds = np.linspace(0, len(ordered), count + 1).round().astype(int).tolist()
+    return [ordered[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True)][::-1]
 
 
 def fly_episodes(
@@ -200,6 +217,7 @@ def fly_episodes(
     if env is None:
         env = make_env(grid_map, env_kwargs)  # validates the options here, before any worker
     workers = max(1, min(workers or os.cpu_count() or 1, len(tasks)))
+    work = chunks(tasks, chunk_count(len(tasks)))
     label = getattr(grid_map, "label", grid_map.name)
     records: list[EpisodeRecord] = []
     bar = tqdm(total=len(tasks), desc=f"MuJoCo {label}", unit="ep", disable=not progress)
@@ -208,7 +226,7 @@ def fly_episodes(
             envs = VectorEnvs(grid_map, env_kwargs)
             try:
                 with one_torch_thread():
-                    for chunk in chunks(tasks):
+                    for chunk in work:
                         records += fly_tasks(envs, policy, chunk)
                         bar.update(len(chunk))
             finally:
@@ -219,9 +237,9 @@ def fly_episodes(
             if engine == "ray":
                 from cpp_mujoco.physics.ray_engine import fly_on_ray
 
-                records = fly_on_ray(job, chunks(tasks), bar, workers, ray_address)
+                records = fly_on_ray(job, work, bar, workers, ray_address)
             else:
-                records = _fly_in_pool(job, tasks, workers, bar)
+                records = _fly_in_pool(job, work, workers, bar)
     finally:
         env.close()
         bar.close()
@@ -244,7 +262,7 @@ def _pool_chunk(tasks: list[Task]) -> list[EpisodeRecord]:
     return fly_chunk(_POOL_JOB["job"], tasks)
 
 
-def _fly_in_pool(job: Job, tasks: list[Task], workers: int, bar) -> list[EpisodeRecord]:
+def _fly_in_pool(job: Job, work: list[list[Task]], workers: int, bar) -> list[EpisodeRecord]:
     """The workers get the job (policy, map and options) from a file, not as initializer
     arguments: spawn writes those into a pipe before the child reads them, and a child that dies
     first (a user script without the ``__main__`` guard re-runs itself there) leaves that write
@@ -254,14 +272,14 @@ def _fly_in_pool(job: Job, tasks: list[Task], workers: int, bar) -> list[Episode
     with tempfile.TemporaryDirectory(prefix="cpp_mujoco_workers_") as folder:
         path = Path(folder) / "job.pickle"
         atomic_write_bytes(path, pickle.dumps(job))
-        return _run_pool(ctx, str(path), tasks, workers, bar)
+        return _run_pool(ctx, str(path), work, workers, bar)
 
 
-def _run_pool(ctx, job: str, tasks, workers, bar) -> list[EpisodeRecord]:
+def _run_pool(ctx, job: str, work, workers, bar) -> list[EpisodeRecord]:
     records: list[EpisodeRecord] = []
     pool = ProcessPoolExecutor(workers, ctx, _init_worker, (job,))
     try:
-        pending: set[Future] = {pool.submit(_pool_chunk, chunk) for chunk in chunks(tasks)}
+        pending: set[Future] = {pool.submit(_pool_chunk, chunk) for chunk in work}
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
