@@ -298,3 +298,16 @@ def test_a_general_agent_flies_a_held_out_set(trained, tmp_path, capsys):
     assert "map set heldout32-v1: 1 of" in capsys.readouterr().out
     result = json.loads((tmp_path / "grid_heldout32-v1_first1.json").read_text())
     assert result["policies"][0]["episodes"] > 0
+
+
+def test_runs_from_before_the_architecture_option_still_resume(trained):
+    # their configs have no "architecture": they are global-local runs, and --architecture fcn
+    # is refused with the reason
+    out, trainer = trained
+    state = load_checkpoint(out / "checkpoint.pt")
+    assert state["architecture"] == "general" and state["config"]["architecture"] == "global-local"
+    del state["config"]["architecture"]
+    check_general_resumable(out / "checkpoint.pt", state, trainer.config, trainer.pool)
+    fcn = GeneralTrainConfig(total_updates=300, **{**TINY, "architecture": "fcn"})
+    with pytest.raises(CheckpointError, match="--architecture global-local"):
+        check_general_resumable(out / "checkpoint.pt", state, fcn, trainer.pool)

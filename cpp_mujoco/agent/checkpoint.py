@@ -9,9 +9,11 @@ Two kinds share one layout:
   states, counters and the evaluation history.
 
 Either kind holds the paper's per-map network (no ``architecture`` key, as every file before the
-general agent) or, with ``architecture = "general"``, the size-independent
-:class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`, whose ``network_kwargs`` are its
-layer sizes instead of a map size; :func:`network_from_checkpoint` rebuilds either.
+general agent) or a size-independent one: ``architecture = "general"`` the global-local
+:class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`, ``"general-fcn"`` the fully
+convolutional :class:`~cpp_mujoco.agent.fcn_network.FCNQNetwork` (:data:`GENERAL_NETWORKS`), whose
+``network_kwargs`` are their layer sizes instead of a map size; :func:`network_from_checkpoint`
+rebuilds each.
 
 Anything else (a folder, another file type, a truncated file, a different map size, NaN/inf
 weights, a non-positive budget scale) raises :class:`CheckpointError` with a message that names the
@@ -32,6 +34,8 @@ import numpy as np
 import torch
 
 from cpp_mujoco.agent.config import TrainConfig
+from cpp_mujoco.agent.fcn_network import ARCHITECTURE as FCN
+from cpp_mujoco.agent.fcn_network import FCNQNetwork, check_fcn_kwargs
 from cpp_mujoco.agent.general_network import ARCHITECTURE as GENERAL
 from cpp_mujoco.agent.general_network import GeneralQNetwork, check_general_kwargs
 from cpp_mujoco.agent.network import QNetwork
@@ -42,6 +46,11 @@ FORMAT_VERSION = 1
 AGENT_KIND = "cpp_mujoco.agent"
 TRAIN_KIND = "cpp_mujoco.train_state"
 KINDS = (AGENT_KIND, TRAIN_KIND)
+# the size-independent networks: a checkpoint's "architecture" → (class, network_kwargs check)
+GENERAL_NETWORKS = {
+    GENERAL: (GeneralQNetwork, check_general_kwargs),
+    FCN: (FCNQNetwork, check_fcn_kwargs),
+}
 
 
 class CheckpointError(ValueError):
@@ -125,13 +134,14 @@ def _check(path: Path, obj: dict) -> None:
             raise CheckpointError(f"{path} lacks {key!r}; the file is incomplete")
     kw = obj["network_kwargs"]
     architecture = obj.get("architecture", "paper")  # files without one hold the paper's net
-    if architecture == GENERAL:
-        problem = check_general_kwargs(kw)
+    if is_general(obj):
+        problem = GENERAL_NETWORKS[architecture][1](kw)
         if problem:
             raise CheckpointError(f"{path}: {problem}")
     elif architecture != "paper":
+        known = ", ".join(["paper", *GENERAL_NETWORKS])
         raise CheckpointError(
-            f"{path}: unknown network architecture {architecture!r} (known: paper, {GENERAL})"
+            f"{path}: unknown network architecture {architecture!r} (known: {known})"
         )
     elif (
         not isinstance(kw, dict)
@@ -163,7 +173,7 @@ def load_checkpoint(path: str | os.PathLike, *, map_shape: tuple[int, int] | Non
     path = Path(path)
     obj = _read(path)
     _check(path, obj)
-    if map_shape is not None and obj.get("architecture") != GENERAL:  # general: any size
+    if map_shape is not None and not is_general(obj):  # a general network: any size
         kw = obj["network_kwargs"]
         got = (kw["height"], kw["width"])
         if got != tuple(map_shape):
@@ -174,13 +184,21 @@ def load_checkpoint(path: str | os.PathLike, *, map_shape: tuple[int, int] | Non
     return obj
 
 
-def network_from_checkpoint(obj: dict, source: str = "checkpoint") -> QNetwork | GeneralQNetwork:
-    """The network a checkpoint describes: the paper's, or the general one (``architecture``)."""
-    kind = GeneralQNetwork if obj.get("architecture") == GENERAL else QNetwork
+def is_general(obj: dict) -> bool:
+    """Whether a checkpoint holds a size-independent network (:data:`GENERAL_NETWORKS`)."""
+    architecture = obj.get("architecture")
+    return isinstance(architecture, str) and architecture in GENERAL_NETWORKS
+
+
+def network_from_checkpoint(
+    obj: dict, source: str = "checkpoint"
+) -> QNetwork | GeneralQNetwork | FCNQNetwork:
+    """The network a checkpoint describes: the paper's, or a general one (``architecture``)."""
+    kind = GENERAL_NETWORKS[obj["architecture"]][0] if is_general(obj) else QNetwork
     try:
         net = kind(**obj["network_kwargs"])
         net.load_state_dict(obj["network"])
-    except (TypeError, RuntimeError, KeyError) as exc:
+    except (TypeError, ValueError, RuntimeError, KeyError) as exc:
         raise CheckpointError(
             f"{source}: network weights do not fit the stored shape ({str(exc)[:200]})"
         ) from None
@@ -188,7 +206,7 @@ def network_from_checkpoint(obj: dict, source: str = "checkpoint") -> QNetwork |
 
 
 def agent_payload(
-    network: QNetwork,
+    network: QNetwork | GeneralQNetwork | FCNQNetwork,
     *,
     budget_scale: float,
     map_name: str,
@@ -202,8 +220,9 @@ def agent_payload(
     on an edited map file of the same name is refused instead of silently continuing. A general
     network's payload says so (``architecture``) and holds its shape's arguments.
     """
-    if isinstance(network, GeneralQNetwork):
-        shape = {"architecture": GENERAL, "network_kwargs": dict(network.kwargs)}
+    general = {cls: name for name, (cls, _) in GENERAL_NETWORKS.items()}
+    if type(network) in general:
+        shape = {"architecture": general[type(network)], "network_kwargs": dict(network.kwargs)}
     else:  # the paper's: the same keys as before the general network existed
         shape = {
             "network_kwargs": {
@@ -313,7 +332,7 @@ def restore_training_state(trainer, s: dict) -> None:
 def check_resumable(path: Path, state: dict, config: TrainConfig, grid_map: GridMap) -> None:
     """A resume must continue the same run: the same map cells and the same learning settings
     (only :data:`RESUMABLE_CHANGES` may differ), else :class:`CheckpointError` naming them."""
-    if state.get("architecture") == GENERAL:
+    if is_general(state):
         raise CheckpointError(f"{path} is a general agent's run; resume it with train-general")
     try:
         stored = TrainConfig.from_dict(state["config"])

@@ -15,7 +15,7 @@ import shlex
 import sys
 
 from cpp_mujoco.agent.cli import _HELP, _flag
-from cpp_mujoco.agent.general_config import UNUSED, GeneralTrainConfig
+from cpp_mujoco.agent.general_config import ARCHITECTURES, UNUSED, GeneralTrainConfig
 from cpp_mujoco.cli import TRAIN_GENERAL_HELP as HELP  # the light parser's line: the same
 
 COMMAND = "train-general"
@@ -30,12 +30,16 @@ _GENERAL_HELP = {
     "demo_maps_per_size": "training maps of each size the demo planner flies (the first ones)",
     "demo_budget_step": "demonstrations fly every n-th budget of each size class",
     "final_budget_step": "the final evaluation's budget step (1 = the full protocol)",
+    "architecture": "the network: global-local (Theile et al. 2021: a crop and a pooled view "
+    "of the map centred on the UAV) or fcn (fully convolutional, global max/mean pooling and "
+    "the UAV's cell; reads neither --local-size nor --global-size)",
     "local_size": "side of the full-resolution view around the UAV (odd)",
     "global_size": "side the whole centred map is average-pooled to",
-    "conv_filters": "filters of each convolution",
+    "conv_filters": "filters of each convolution (fcn: of the half-resolution layers)",
     "hidden": "units of each dense layer",
     "num_hidden": "dense layers before the Q-values",
-    "max_side": "largest map side the network's canvas holds (0 = the largest of --sizes)",
+    "max_side": "largest map side: the global-local network's canvas holds it, the fcn's "
+    "receptive field covers it (0 = the largest of --sizes)",
     "eval_budget_step": "validation flies every n-th budget of each size class",
     "budget_scale": "network input = budget / this (0 = the largest budget of --sizes)",
 }
@@ -50,7 +54,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         COMMAND,
         help=HELP,
         description="Train one size-independent DDQN agent (Theile et al. 2021's global-local "
-        "network) on generated 16x16 and 32x32 maps, validated on maps of other seeds. "
+        "network, or a fully convolutional one: --architecture fcn) on generated 16x16 and "
+        "32x32 maps, validated on maps of other seeds. "
         "SIGINT/SIGTERM save a resumable checkpoint.",
     )
     p.add_argument(
@@ -66,6 +71,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         text = f"{_GENERAL_HELP.get(f.name) or _HELP[f.name]} (default: {default})"
         if f.name == "sizes":
             p.add_argument("--sizes", type=int, nargs="+", default=None, help=text)
+        elif f.name == "architecture":
+            p.add_argument("--architecture", choices=ARCHITECTURES, default=None, help=text)
         elif type(default) is bool:
             action = argparse.BooleanOptionalAction
             p.add_argument(_flag(f.name), dest=f.name, action=action, default=None, help=text)

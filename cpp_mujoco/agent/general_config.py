@@ -21,6 +21,10 @@ from cpp_mujoco.size_classes import budget_range
 
 UNUSED = ("map", "min_budget", "max_budget", "init_from")  # inherited, not options here
 NETWORK_FIELDS = ("local_size", "global_size", "conv_filters", "hidden", "num_hidden")
+# the general networks: GeneralQNetwork (Theile et al. 2021) and its fully convolutional
+# alternative FCNQNetwork, which reads neither local_size nor global_size
+ARCHITECTURES = ("global-local", "fcn")
+FCN_FIELDS = ("conv_filters", "hidden", "num_hidden")
 
 
 @dataclass
@@ -39,13 +43,19 @@ class GeneralTrainConfig(TrainConfig):
     demo_maps_per_size: int = 32
     demo_budget_step: int = 10
     final_budget_step: int = 1  # the final evaluation's budget step (1: the full protocol)
-    # --- network (GeneralQNetwork; Theile et al. 2021's values) ----------------------------------
+    # --- network ------------------------------------------------------------------------------
+    # "global-local": GeneralQNetwork, Theile et al. 2021 (the fields below are their values);
+    # "fcn": FCNQNetwork, fully convolutional with global pooling (conv_filters, hidden,
+    # num_hidden and max_side only). The default keeps runs from before the choice resumable
+    architecture: str = "global-local"
     local_size: int = 17  # full-resolution crop around the UAV
     global_size: int = 21  # the centred map pooled to this side (63 → 21: 3×3 cells each)
-    conv_filters: int = 16
+    conv_filters: int = 16  # fcn: the half-resolution layers' (full resolution: half of it)
     hidden: int = 256
     num_hidden: int = 3
-    max_side: int = 0  # the canvas fits maps up to this side (0: the largest of sizes)
+    # the canvas fits maps up to this side; fcn: the receptive field covers it (0: the largest
+    # of sizes)
+    max_side: int = 0
     # --- defaults that differ from the per-map agent's -----------------------------------------
     buffer_size: int = 200_000  # many maps: a longer memory (≈ 35 MB packed)
     total_updates: int = 200_000  # a skill, not a tour: a GPU or a long CPU run
@@ -58,6 +68,12 @@ class GeneralTrainConfig(TrainConfig):
         if isinstance(self.sizes, (list, int)):  # from a checkpoint or one size
             self.sizes = tuple(self.sizes) if isinstance(self.sizes, list) else (self.sizes,)
         super().__post_init__()
+        if self.architecture not in ARCHITECTURES:
+            raise ValueError(
+                f"architecture must be one of {', '.join(ARCHITECTURES)}, got {self.architecture!r}"
+            )
+        if self.architecture == "fcn" and self.conv_filters < 2:
+            raise ValueError(f"conv_filters must be >= 2 for fcn, got {self.conv_filters}")
         if not self.sizes or any(
             type(s) is not int or not MIN_SIZE <= s <= MAX_SIDE for s in self.sizes
         ):
@@ -99,6 +115,8 @@ class GeneralTrainConfig(TrainConfig):
         return min(self.demo_maps_per_size, self.maps_per_size)
 
     def network_kwargs(self) -> dict:
-        """:class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`'s arguments."""
-        kwargs = {name: getattr(self, name) for name in NETWORK_FIELDS}
+        """The arguments of :attr:`architecture`'s network: :class:`~cpp_mujoco.agent.
+        general_network.GeneralQNetwork` or :class:`~cpp_mujoco.agent.fcn_network.FCNQNetwork`."""
+        names = FCN_FIELDS if self.architecture == "fcn" else NETWORK_FIELDS
+        kwargs = {name: getattr(self, name) for name in names}
         return {**kwargs, "max_side": self.max_side or max(self.sizes)}

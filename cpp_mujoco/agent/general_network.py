@@ -17,9 +17,9 @@ maps up to ``max_side``, a map padded with no-fly cells gives exactly the Q-valu
 itself — a mixed 16/32 minibatch is padded to 32×32 and stacked (:func:`pad_grids`). The views
 are computed from the map without building the canvas (:func:`centred_views`).
 
-The alternative to compare later by measurement: a fully convolutional network with global
-pooling (no flatten at all, also size-independent, but it must learn long-range context through
-depth, where the global view hands it over directly).
+The alternative, measured against it: :mod:`cpp_mujoco.agent.fcn_network`, fully convolutional
+with global pooling (no flatten at all, also size-independent, but it must learn long-range
+context through depth, where the global view hands it over directly).
 """
 
 from __future__ import annotations

@@ -4,7 +4,9 @@
 collection, DDQN updates, guided exploration, DQfD minibatches, schedule, signals and checkpoint
 loop are inherited unchanged — with other parts plugged in:
 
-* the size-independent :class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`;
+* a size-independent network: the global-local
+  :class:`~cpp_mujoco.agent.general_network.GeneralQNetwork` or, with ``architecture="fcn"``, the
+  fully convolutional :class:`~cpp_mujoco.agent.fcn_network.FCNQNetwork`;
 * :class:`~cpp_mujoco.agent.multi_map_env.MultiMapVectorEnv`: every slot on its own generated
   training map, a new one drawn every ``episodes_per_map`` episodes;
 * :class:`~cpp_mujoco.agent.multi_map_replay.MultiMapReplay` (each state's map by index) and
@@ -32,11 +34,15 @@ from cpp_mujoco.agent.checkpoint import (
     RESUMABLE_CHANGES,
     CheckpointError,
     agent_payload,
+    is_general,
     load_checkpoint,
 )
+from cpp_mujoco.agent.fcn_network import ARCHITECTURE as FCN
+from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_eval import ValidationResult, validate
-from cpp_mujoco.agent.general_network import ARCHITECTURE, GeneralQNetwork
+from cpp_mujoco.agent.general_network import ARCHITECTURE as GENERAL
+from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.map_pool import MapPool, MapwiseGuide
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay, record_pool_demonstrations
@@ -49,6 +55,13 @@ from cpp_mujoco.planners import make_planner
 REFERENCE_PLANNER = "safe-greedy"  # flown on the validation maps beside the final agent
 # a resumed general run may also change these: they schedule it, not what it learns
 GENERAL_RESUMABLE = RESUMABLE_CHANGES | {"final_budget_step"}
+# GeneralTrainConfig.architecture → (network class, what its checkpoints record)
+NETWORKS = {"global-local": (GeneralQNetwork, GENERAL), "fcn": (FCNQNetwork, FCN)}
+
+
+def build_network(config: GeneralTrainConfig) -> GeneralQNetwork | FCNQNetwork:
+    """The config's size-independent network, freshly initialised."""
+    return NETWORKS[config.architecture][0](**config.network_kwargs())
 
 
 class GeneralTrainer(Trainer):
@@ -65,8 +78,8 @@ class GeneralTrainer(Trainer):
         self.val_pool = MapPool.generate(c.sizes, c.val_maps_per_size, c.val_seed)
         self.env = MultiMapVectorEnv(self.pool, c.num_envs, c.episodes_per_map)
         torch.manual_seed(c.seed)
-        self.online = GeneralQNetwork(**c.network_kwargs()).to(self.device)
-        self.target = GeneralQNetwork(**c.network_kwargs()).to(self.device)
+        self.online = build_network(c).to(self.device)
+        self.target = build_network(c).to(self.device)
         self.target.load_state_dict(self.online.state_dict())
         self.optimizer = torch.optim.Adam(
             self.online.parameters(), lr=c.learning_rate, eps=c.adam_eps, fused=self._fused()
@@ -176,11 +189,17 @@ class GeneralTrainer(Trainer):
 def check_general_resumable(
     path: Path, state: dict, config: GeneralTrainConfig, pool: MapPool
 ) -> None:
-    """:class:`CheckpointError` unless ``state`` continues this general run: the general
+    """:class:`CheckpointError` unless ``state`` continues this general run: the same general
     network, the same training maps and the same learning settings (:data:`GENERAL_RESUMABLE`
     may differ)."""
-    if state.get("architecture") != ARCHITECTURE:
+    if not is_general(state):
         raise CheckpointError(f"{path} is a per-map run; resume it with `cpp-mujoco train`")
+    if state["architecture"] != NETWORKS[config.architecture][1]:
+        stored = {name: arch for arch, (_, name) in NETWORKS.items()}[state["architecture"]]
+        raise CheckpointError(
+            f"{path} holds the {stored} network; resume with --architecture {stored} "
+            f"(given: {config.architecture})"
+        )
     if state.get("map_digest") != pool.digest:
         raise CheckpointError(
             f"{path} was trained on another map pool ({state.get('train_maps')}); "

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.policy import as_batch
@@ -22,7 +23,7 @@ class GreedyAgent:
 
     def __init__(
         self,
-        network: QNetwork | GeneralQNetwork,
+        network: QNetwork | GeneralQNetwork | FCNQNetwork,
         budget_scale: float,
         device: str | torch.device = "cpu",
         name: str = "ddqn",
@@ -37,7 +38,8 @@ class GreedyAgent:
     @property
     def map_shape(self) -> tuple[int, int] | None:
         """The map size the network was built for; None for a network that flies any size
-        (:class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`)."""
+        (:class:`~cpp_mujoco.agent.general_network.GeneralQNetwork`,
+        :class:`~cpp_mujoco.agent.fcn_network.FCNQNetwork`)."""
         if getattr(self.network, "any_size", False):
             return None
         return self.network.height, self.network.width
