@@ -40,6 +40,15 @@ _HELP = {
     "wind_calm_fraction": "share of calm-air training episodes with the wind option",
     "wind_gust_scale": "wind option: each episode's gust spread × a factor uniform in 1..this",
     "init_from": "start from this agent's weights (bundled name or file; empty = random)",
+    "backend": "where the training episodes are flown: grid (the MDP) or mujoco (fine-tuning in"
+    " physics, several weathers at once; the evaluation stays on the grid)",
+    "physics_wind_speed": "backend mujoco: steady wind of the windy slots, m/s (0 = all calm)",
+    "physics_wind_directions": "backend mujoco: where that wind blows from, letters of NESW, one"
+    " group of slots each",
+    "physics_turbulence": "backend mujoco: Dryden turbulence of the windy slots (none, light,"
+    " moderate, severe)",
+    "physics_calm_share": "backend mujoco: share of the slots in calm, still air",
+    "physics_threads": "backend mujoco: threads stepping MuJoCo in each weather's slots",
     "guide": "reference planner that drives the guided environments",
     "guide_fraction": "fraction of environments the guide drives at the start (0 = the paper)",
     "guide_epsilon": "probability that a guided environment takes the agent's own action",
@@ -62,6 +71,15 @@ _HELP = {
     "threads": "torch CPU threads (0 = pick the faster of 1 and all cores while training)",
 }
 
+# fine-tuning a wind agent in physics: its own wind option (it observes the wind; the grid
+# evaluation flies it), calm air and 9 m/s moderate turbulence from N, E, S and W in MuJoCo
+FINETUNE_EXAMPLE = (
+    "cpp-mujoco train --map B --backend mujoco --init-from B-wind --wind-max-speed 12"
+    " --wind-calm-fraction 0.35 --physics-wind-speed 9 --physics-calm-share 0.2"
+    " --guide-fraction 0 --demo-fraction 0 --learning-rate 1e-4 --total-updates 3000"
+    " --best-by landing --out runs/finetune-B"
+)
+
 
 def _flag(name: str) -> str:
     return "--" + name.replace("_", "-")
@@ -76,7 +94,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "train",
         help="train the DDQN agent on a map",
         description="Train the paper's DDQN agent on the grid MDP (defaults: the project's fast CPU"
-        " schedule; --paper for the paper's). SIGINT/SIGTERM save a resumable checkpoint.",
+        " schedule; --paper for the paper's), or fine-tune one in MuJoCo (--backend mujoco)."
+        " SIGINT/SIGTERM save a resumable checkpoint.",
+        epilog=f"fine-tune the bundled wind agent of map B in physics: {FINETUNE_EXAMPLE}",
     )
     p.add_argument(
         "--out",

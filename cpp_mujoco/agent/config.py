@@ -10,7 +10,12 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
 
-from cpp_mujoco.grid.wind import GridWind
+from cpp_mujoco.grid.spaces import MAX_WIND
+from cpp_mujoco.grid.wind import COMPASS, GridWind
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.turbulence import check_level
+
+BACKENDS = ("grid", "mujoco")  # where training episodes are flown: the MDP or physics
 
 
 @dataclass
@@ -31,6 +36,16 @@ class TrainConfig:
     # start from this agent's weights (bundled name or file; "" = random init). A wind network
     # started from a calm one gets zero weights on its wind inputs: it first acts as that agent
     init_from: str = ""
+    # --- backend: where the training episodes are flown ---------------------------------------
+    # "grid" (the MDP) or "mujoco": fine-tuning in physics (MixedWindVectorEnv) — the drones fly
+    # physics_wind_speed from each of physics_wind_directions with physics_turbulence, and
+    # physics_calm_share of them calm, still air. Evaluation (log.csv, best.pt) stays on the grid
+    backend: str = "grid"
+    physics_wind_speed: float = 9.0  # m/s, the steady wind of the windy slots (0: all calm)
+    physics_wind_directions: str = "NESW"  # where it blows from: one group of slots each
+    physics_turbulence: str = "moderate"  # Dryden level of the windy slots (none … severe)
+    physics_calm_share: float = 0.2  # share of the slots in calm air (rounded to whole slots)
+    physics_threads: int = 1  # threads stepping MuJoCo in each weather's group of slots
     # --- DDQN (paper Table I) ----------------------------------------------------------------
     gamma: float = 0.95  # discount factor
     tau: float = 0.01  # soft target update θ̄ ← (1−τ)θ̄ + τθ after each step (paper: 0.005)
@@ -117,6 +132,51 @@ class TrainConfig:
         if not 0 < self.learning_rate < float("inf"):
             raise ValueError(f"learning_rate must be > 0, got {self.learning_rate}")
         self.wind  # noqa: B018 - GridWind checks the wind options now, before any run folder
+        self._check_backend()
+
+    def _check_backend(self) -> None:
+        if self.backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {self.backend!r}")
+        if self.backend != "grid" and type(self) is not TrainConfig:
+            raise ValueError(f"{type(self).__name__} trains on the grid only (backend 'grid')")
+        if not 0 <= self.physics_wind_speed <= MAX_WIND:  # NaN fails too
+            raise ValueError(f"physics_wind_speed must be in [0, {MAX_WIND:g}] m/s")
+        if not 0.0 <= self.physics_calm_share <= 1.0:
+            raise ValueError(f"physics_calm_share must be in [0, 1], got {self.physics_calm_share}")
+        dirs = self.physics_wind_directions
+        if not dirs or set(dirs) - set(COMPASS) or len(set(dirs)) != len(dirs):
+            raise ValueError(
+                f"physics_wind_directions must be distinct letters of NESW, got {dirs!r}"
+            )
+        check_level(self.physics_turbulence, PhysicsConfig.altitude)
+        if self.physics_threads < 1:
+            raise ValueError(f"physics_threads must be >= 1, got {self.physics_threads}")
+        if self.backend == "grid":
+            return
+        windy = any(kw for kw, _ in self.physics_conditions())
+        if windy and self.wind is None:
+            raise ValueError(
+                "physics_wind_speed > 0 needs a network that observes the wind: set "
+                "wind_max_speed > 0 (a wind agent), or physics_wind_speed 0 (calm air only)"
+            )
+
+    def physics_conditions(self) -> list[tuple[dict, int]]:
+        """The weathers of a ``backend="mujoco"`` run: ``[(PhysicsConfig keywords, slots), …]``
+        (:class:`~cpp_mujoco.physics.mixed_wind_vector_env.MixedWindVectorEnv`): calm slots
+        first, then the windy ones split evenly over the directions (the first get one more)."""
+        n, dirs = self.num_envs, self.physics_wind_directions
+        calm = n if not self.physics_wind_speed else int(self.physics_calm_share * n + 0.5)
+        windy = n - calm
+        if 0 < windy < len(dirs):
+            raise ValueError(
+                f"num_envs {n} leaves {windy} windy slot(s) for {len(dirs)} wind directions"
+            )
+        out = [({}, calm)] if calm else []
+        for k, d in enumerate(dirs if windy else ""):
+            wind = {"wind_speed": self.physics_wind_speed, "turbulence": self.physics_turbulence}
+            wind["wind_direction"] = 90.0 * COMPASS.index(d)
+            out.append((wind, windy // len(dirs) + (k < windy % len(dirs))))
+        return out
 
     @property
     def wind(self):

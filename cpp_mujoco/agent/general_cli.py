@@ -19,7 +19,10 @@ from cpp_mujoco.agent.general_config import ARCHITECTURES, UNUSED, GeneralTrainC
 from cpp_mujoco.cli import TRAIN_GENERAL_HELP as HELP  # the light parser's line: the same
 
 COMMAND = "train-general"
-EXCLUDED = (*UNUSED, "wind_max_speed", "wind_calm_fraction", "wind_gust_scale")
+# the per-map trainer's grid wind option and its physics fine-tuning are not the general agent's
+PHYSICS = ("backend", "physics_wind_speed", "physics_wind_directions", "physics_turbulence",
+           "physics_calm_share", "physics_threads")  # fmt: skip
+EXCLUDED = (*UNUSED, "wind_max_speed", "wind_calm_fraction", "wind_gust_scale", *PHYSICS)
 _GENERAL_HELP = {
     "sizes": "map sides trained together, each flown with its size class's budgets",
     "maps_per_size": "generated training maps of each size (seeds map-seed on)",

@@ -6,6 +6,9 @@ sampled from the soft-max policy) followed by ``updates_per_step`` gradient upda
 and ``training.png`` (the paper's Fig. 4). ``checkpoint.pt`` (resumable) and ``agent.pt`` are
 written atomically every ``checkpoint_every`` updates, every ``checkpoint_minutes`` and when
 SIGINT/SIGTERM stops the run; ``best.pt`` keeps the best evaluated agent.
+``backend="mujoco"`` fine-tunes in physics (:mod:`~cpp_mujoco.physics.mixed_wind_vector_env`:
+several weathers at once); evaluation stays on the grid (cheap). A resume ends the episodes in
+flight at their last stored step (MuJoCo's state is not saved) and starts fresh ones.
 """
 
 from __future__ import annotations
@@ -64,13 +67,18 @@ class Trainer:
         self.tuner = ThreadTuner((1, cores)) if c.threads == 0 and cores > 1 else None
         self.grid_map = load_map(c.map)
         self.grid_config = GridConfig(min_budget=c.min_budget, max_budget=c.max_budget, wind=c.wind)
-        self.env = gym.make_vec(
-            "cpp_mujoco/Grid-v0",
-            num_envs=c.num_envs,
-            map=self.grid_map,
-            config=self.grid_config,
-            autoreset_mode="SameStep",
-        )
+        if c.backend == "mujoco":  # MuJoCo is imported only then
+            from cpp_mujoco.physics.mixed_wind_vector_env import MixedWindVectorEnv
+
+            self.env = MixedWindVectorEnv.for_training(c, self.grid_map)
+        else:
+            self.env = gym.make_vec(
+                "cpp_mujoco/Grid-v0",
+                num_envs=c.num_envs,
+                map=self.grid_map,
+                config=self.grid_config,
+                autoreset_mode="SameStep",
+            )
         torch.manual_seed(c.seed)
         h, w = self.grid_map.shape
         self.online = QNetwork(h, w, wind_inputs=c.wind is not None).to(self.device)
@@ -261,6 +269,10 @@ class Trainer:
 
     def load_state_dict(self, state: dict) -> None:
         restore_training_state(self, state)
+        if self.config.backend == "mujoco":  # physics episodes in flight are lost: end them
+            self.replay.terminated[(self.replay.pos - 1) % self.replay.rows] = True  # (n-step)
+            self.obs, _ = self.env.reset()  # fresh episodes, from the restored generators
+            self.ep_return[:] = 0.0
 
     def save(self) -> None:
         atomic_save(self.state_dict(), self.out / "checkpoint.pt")
