@@ -7,6 +7,9 @@ from N, E, S and W with the budgets dealt round-robin to the four (``cpp_mujoco.
     python scripts/rated_wind.py --budget-step 5    # quicker
     python scripts/rated_wind.py --guard            # also the paper agents and greedy + guard
     python scripts/rated_wind.py --each-direction   # every episode from each of N/E/S/W (4×)
+    python scripts/rated_wind.py --maps B --each-direction --agent runs/finetune-B/agent.pt
+                                 # a saved agent instead of the bundled policies
+    python scripts/rated_wind.py --gust-seed 1      # other gust histories for the same episodes
     python scripts/rated_wind.py --ray --ray-address HEAD:6379   # on a Ray cluster (README)
 Writes out/rated_wind/{rated_wind.md, rated_wind.json, index.html}; exits 1 if any no-fly
 violation.
@@ -48,6 +51,14 @@ def main(argv: list[str] | None = None) -> int:
         "--each-direction", action="store_true",
         help="fly every episode from each of N/E/S/W (4x the episodes), not round-robin",
     )  # fmt: skip
+    parser.add_argument(
+        "--agent", default=None, metavar="PATH",
+        help="fly this saved agent (checkpoint or agent file) on every map instead",
+    )  # fmt: skip
+    parser.add_argument(
+        "--gust-seed", type=int, default=0,
+        help="k > 0: other gust histories for the same episodes (held-out selection)",
+    )  # fmt: skip
     parser.add_argument("--out", default="out/rated_wind", help="output folder")
     args = parser.parse_args(argv)
     if error := ray_option_error(args):
@@ -59,9 +70,15 @@ def main(argv: list[str] | None = None) -> int:
     budgets = protocol_budgets(step=args.budget_step)
     grid_maps = [load_map(m) for m in args.maps]  # a bad map fails before any flight
     try:
-        variants = select_wind_variants(grid_maps, args.policies, args.guard)
-    except ValueError as exc:
+        variants = (
+            agent_variants(grid_maps, args.agent, args.guard)
+            if args.agent
+            else select_wind_variants(grid_maps, args.policies, args.guard)
+        )
+    except (ValueError, OSError) as exc:
         parser.error(str(exc))
+    if args.gust_seed < 0:
+        parser.error(f"--gust-seed must be >= 0, got {args.gust_seed}")
     engine = "ray" if args.ray else "local"
     with ray_runtime(args.ray_address, args.workers) if args.ray else nullcontext():  # once
         for grid_map in grid_maps:
@@ -70,7 +87,10 @@ def main(argv: list[str] | None = None) -> int:
                     policy, grid_map, RATED_WIND["wind_speed"], turbulence=RATED_WIND["turbulence"],
                     budgets=budgets, policy_name=name, workers=args.workers, engine=engine,
                     progress=sys.stderr.isatty(),
-                    env_kwargs={"return_guard": True} if guard else None,
+                    env_kwargs={
+                        **({"return_guard": True} if guard else {}),
+                        **({"gust_seed": args.gust_seed} if args.gust_seed else {}),
+                    } or None,
                     each_direction=args.each_direction,
                 )  # fmt: skip
                 table.rows.append(rated_row(result))
@@ -83,6 +103,16 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\nwritten: {out}/rated_wind.md, rated_wind.json, index.html; no-fly violations: "
           f"{violations}")  # fmt: skip
     return 1 if violations else 0
+
+
+def agent_variants(grid_maps, path: str, guard: bool) -> dict[str, list]:
+    """The saved agent at ``path`` (and with the guard, if asked) on every map, named by its
+    path; it must fit each map (a per-map agent flies its own map only)."""
+    from cpp_mujoco.agent import load_agent
+
+    agent, name = load_agent(path), f"ddqn[{path}]"
+    runs = [(name, agent, False)] + ([(f"{name} + guard", agent, True)] if guard else [])
+    return {g.label: runs for g in grid_maps}
 
 
 if __name__ == "__main__":

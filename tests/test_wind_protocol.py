@@ -5,7 +5,7 @@ import pytest
 
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.evaluate import evaluate
-from cpp_mujoco.maps import GridMap
+from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.planners import RandomPlanner, SafeGreedyPlanner
 from cpp_mujoco.review.results import rated_row, weather
 from cpp_mujoco.wind_protocol import COMPASS, RATED_WIND, concatenate, evaluate_in_winds
@@ -130,3 +130,32 @@ def test_the_wind_sweep_script_writes_its_table_pivot_and_figure(tmp_path):
     assert "python scripts/wind_sweep.py --maps" in page and 'src="wind_sweep.png"' in page
     with pytest.raises(SystemExit):
         script.main(["--maps", str(png), "--policies", "ddqn[Z]", "--out", str(tmp_path)])
+
+
+def _rated_wind_script():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "rated_wind.py"
+    spec = importlib.util.spec_from_file_location("rated_wind_script", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    return script
+
+
+def test_rated_wind_flies_a_saved_agent_and_refuses_bad_options(tmp_path, capsys):
+    script = _rated_wind_script()
+    maps = [load_map("C")]
+    runs = script.agent_variants(maps, "C-wind", guard=True)["C"]
+    assert [(name, guard) for name, _, guard in runs] == [
+        ("ddqn[C-wind]", False), ("ddqn[C-wind] + guard", True),
+    ]  # fmt: skip
+    assert runs[0][1].network.wind_inputs  # the saved agent itself, not a bundled stand-in
+    for argv, message in (
+        (["--agent", str(tmp_path / "missing.pt")], "missing.pt"),
+        (["--agent", "C-wind", "--gust-seed", "-1"], "--gust-seed must be >= 0"),
+    ):
+        with pytest.raises(SystemExit):
+            script.main([*argv, "--maps", "C", "--out", str(tmp_path / "out")])
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "out" / "rated_wind.json").exists()  # nothing flown, nothing written
