@@ -61,6 +61,30 @@ def test_each_slot_flies_its_own_wind_as_a_plain_env_with_its_seed():
         e.close()
 
 
+def test_one_weather_from_several_directions_is_one_batch_flying_each_direction():
+    """Conditions that differ only in the wind's direction share one batch (one control tick),
+    each drone with its own steady wind: still the flight of a plain env of its direction."""
+    compass = [{**EAST, "wind_direction": d} for d in (0.0, 90.0, 180.0, 270.0)]
+    env = MixedWindVectorEnv([({}, 1), *((w, 1) for w in compass)], MAP)
+    assert env.counts == [1, 4]  # calm air, and one batch for the four directions
+    assert [c.wind_direction for c in env.physics_configs][1:] == [0.0, 90.0, 180.0, 270.0]
+    weathers = [{}, *compass]
+    plains = [MuJoCoVectorEnv(1, MAP, **w) for w in weathers]
+    obs, _ = env.reset(seed=5, options={"budget": np.full(5, 30)})
+    for j, p in enumerate(plains):
+        o, _ = p.reset(seed=[5 + j], options={"budget": 30})
+        np.testing.assert_array_equal(o["wind"][0], obs["wind"][j])
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        actions = rng.integers(0, 4, size=5)
+        _, _, _, _, info = env.step(actions)
+        for j, p in enumerate(plains):
+            *_, i = p.step(actions[j : j + 1])
+            assert i["energy_used_j"][0] == info["energy_used_j"][j], j  # to the bit
+    used = info["energy_used_j"][1:]
+    assert len(set(used.tolist())) == 4  # the four directions really fly differently
+
+
 def test_autoreset_final_info_comes_through_for_the_slots_that_ended():
     """SameStep autoreset: the slots that landed are in ``final_info`` (``landed``,
     ``coverage_ratio``), masked by ``_final_info``, whichever sub-env they belong to; the slots

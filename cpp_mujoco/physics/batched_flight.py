@@ -24,6 +24,7 @@ batch only at a tick with contacts) and the motors-off settle.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -157,6 +158,14 @@ class BatchedFlight:
         self.camera.reset(i)
         self.coverage[i] = False
         self._bad0[i] = self._bad[i]
+
+    def set_wind_direction(self, i: int, direction: float) -> None:
+        """Drone ``i``'s steady wind blows from ``direction`` (degrees, as ``wind_direction``)
+        from its next episode on: the scalar wind of that configuration, so its flight is a
+        single env's with ``wind_direction=direction``."""
+        one = self.one
+        config = dataclasses.replace(self.config, wind_direction=float(direction))
+        self.wind.set_direction(i, type(one.wind)(config, one.wind.dt))
 
     def position(self, i: int) -> np.ndarray:
         return self.state[i, self.cols[0]][:3].copy()

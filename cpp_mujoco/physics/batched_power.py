@@ -285,7 +285,10 @@ class BatchedWind:
 
     def __init__(self, scalar: Wind, n: int):
         self.s = scalar
-        self.steady = np.array(scalar.steady)
+        # per drone: the steady wind and the turbulence's u axis (one weather may blow from
+        # several directions in one batch, :meth:`set_direction`)
+        self.steady = np.tile(np.array(scalar.steady, dtype=float), (n, 1))
+        self.axis = np.tile(np.array(scalar.axis, dtype=float), (n, 1))
         self.gust = np.zeros((n, 2))
         self.gust_noise = NoiseBlocks(n, 512)
         self.turb = scalar.turbulence
@@ -297,6 +300,12 @@ class BatchedWind:
         self._table = np.zeros((0, 16))
         if self.turb is not None:
             self.gain = np.array(self.turb._gain)
+
+    def set_direction(self, i: int, scalar: Wind) -> None:
+        """Drone ``i`` flies ``scalar``'s steady wind and axes from now on: a :class:`Wind` of
+        the same weather from another direction (gusts and turbulence are the same model)."""
+        self.steady[i] = scalar.steady
+        self.axis[i] = scalar.axis
 
     def reset(self, i: int, rng: np.random.Generator) -> None:
         """As :meth:`Wind.reset`: the gusts' normals first, then the turbulence's."""
@@ -330,7 +339,7 @@ class BatchedWind:
     def velocity(self, i: np.ndarray, pos: np.ndarray, dt: float) -> np.ndarray:
         """(n, 3) wind at drones ``i`` at world ``pos``; advances their gusts one interval."""
         s = self.s
-        w = np.broadcast_to(self.steady, (len(i), 3)).copy()
+        w = self.steady[i]  # a copy (fancy indexing)
         if s.std:
             g = self.gust[i]
             noise = self.gust_noise.take(i, 2)
@@ -361,7 +370,7 @@ class BatchedWind:
         self.state[i] = np.stack([u, v1, v2, w1, w2], 1)
         gu, gv, gw = self.gain
         gust_u, gust_v, gust_w = gu * u, gv * (v1 + _SQRT3 * v2), gw * (w1 + _SQRT3 * w2)
-        cx, cy = s.axis
+        cx, cy = self.axis[i, 0], self.axis[i, 1]
         return np.stack(
             [w[:, 0] + gust_u * cx - gust_v * cy, w[:, 1] + gust_u * cy + gust_v * cx,
              w[:, 2] + gust_w],

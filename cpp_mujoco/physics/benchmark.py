@@ -255,6 +255,45 @@ def flight_figures(wind_speed: float = 8.0) -> dict:
     }
 
 
+def benchmark_mixed(seconds: float = 15.0, num_envs: int = 64, map: str = "B") -> dict:  # noqa: A002
+    """Actions/s of the fine-tuning env (:class:`MixedWindVectorEnv`: calm air and 9 m/s
+    moderate from N/E/S/W) with the four directions in one batch, against the same weathers
+    kept in five batches (a condition key that changes nothing keeps them apart); interleaved,
+    best of two rounds."""
+    from cpp_mujoco.physics.mixed_wind_vector_env import MixedWindVectorEnv
+
+    calm, rest = num_envs // 5, num_envs - num_envs // 5
+    shares = [rest // 4 + (k < rest % 4) for k in range(4)]
+    wind = {"wind_speed": 9.0, "turbulence": "moderate"}
+
+    def conditions(apart: bool) -> list:
+        winds = [
+            ({**wind, "wind_direction": 90.0 * k, **({"gust_seed": 0} if apart and k % 2 else {})},
+             n)
+            for k, n in enumerate(shares)
+        ]  # fmt: skip
+        return [({}, calm), *winds]
+
+    rng = np.random.default_rng(0)
+    best = {"merged": 0.0, "apart": 0.0}
+    for _ in range(2):
+        for name in best:
+            env = MixedWindVectorEnv(conditions(name == "apart"), map, autoreset_mode="SameStep")
+            env.reset(seed=0)
+            acts, start = 0, time.perf_counter()
+            while time.perf_counter() - start < seconds:
+                env.step(np.where(rng.random(num_envs) < 0.02, 4, rng.integers(0, 4, num_envs)))
+                acts += num_envs
+            best[name] = max(best[name], acts / (time.perf_counter() - start))
+            env.close()
+    return {
+        "mixed_num_envs": num_envs,
+        "mixed_merged_actions_per_s": best["merged"],
+        "mixed_apart_actions_per_s": best["apart"],
+        "mixed_speedup": best["merged"] / best["apart"],
+    }
+
+
 def run() -> dict:
     """The ``physics`` section as ``cpp-mujoco benchmark`` runs it (≈ 10 min on 2 cores: the
     full protocol on map A is part of it)."""
@@ -270,11 +309,14 @@ if __name__ == "__main__":
     parser.add_argument("--figures", action="store_true", help="physical figures instead")
     parser.add_argument("--batched", type=int, metavar="N", help="single vs N batched drones")
     parser.add_argument("--protocol", type=int, metavar="STEP", help="protocol wall times")
+    parser.add_argument("--mixed", type=int, metavar="N", help="fine-tuning env, N drones")
     args = parser.parse_args()
     if args.figures:
         result = flight_figures()
     elif args.batched:
         result = benchmark_batched(args.seconds, args.batched)
+    elif args.mixed:
+        result = benchmark_mixed(args.seconds, args.mixed)
     elif args.protocol:
         result = benchmark_protocol(step=args.protocol)
     else:

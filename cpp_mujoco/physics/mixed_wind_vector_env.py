@@ -11,9 +11,10 @@ condition's env, so its episode is the one a plain ``MuJoCo-v0`` with that condi
 options and actions flies (``tests/test_physics_finetune.py``); its ``wind`` observation is
 its own condition's wind.
 
-Cost: each weather is its own batch, so a control tick runs once per weather. Measured on map B
-(one loaded core): 32 drones in 5 weathers flew 16-20 actions/s, the same 32 in one weather
-53-57; 64 drones in 5 weathers 32. Per-drone steady winds in ``BatchedWind`` would make it one.
+Cost: each batch runs its own control tick, so consecutive conditions that differ only in the
+wind's direction fly as one batch (per-drone steady winds, ``MuJoCoVectorEnv(wind_directions=
+...)``): calm air and a wind from N/E/S/W are two ticks, not five. Measured on map B (one loaded
+core) before that merge: 32 drones in 5 batches flew 16-20 actions/s, the same 32 in one 53-57.
 
 gymnasium's helpers stack single-env samples (``vector.utils.concatenate``) or merge one env's
 info at a time (``VectorEnv._add_info``); neither joins batches, so :func:`concat_batches` does.
@@ -22,6 +23,7 @@ The spaces are ``vector.utils.batch_space`` of the single env's.
 
 from __future__ import annotations
 
+import dataclasses
 import numbers
 import os
 from collections.abc import Mapping, Sequence
@@ -68,6 +70,22 @@ def _zeros(template: Any, n: int) -> Any:
     return np.zeros((n, *template.shape[1:]), dtype=template.dtype)
 
 
+def _merge_directions(conditions: list[Condition]) -> list[tuple[dict, list[float]]]:
+    """Consecutive conditions that differ only in ``wind_direction`` as one batch (the options
+    of its first, and one direction per slot): a weather from four directions is one control
+    tick, not four (``MuJoCoVectorEnv(wind_directions=...)``)."""
+    groups: list[tuple[dict, list[float]]] = []
+    for kw, n in conditions:
+        rest = {k: v for k, v in kw.items() if k != "wind_direction"}
+        direction = float(kw.get("wind_direction", 0.0))
+        last = groups[-1] if groups else None
+        if last is not None and {k: v for k, v in last[0].items() if k != "wind_direction"} == rest:
+            last[1].extend([direction] * int(n))
+        else:
+            groups.append((dict(kw), [direction] * int(n)))
+    return groups
+
+
 class MixedWindVectorEnv(VectorEnv):
     """One batch of ``MuJoCo-v0`` drones flying several weathers.
 
@@ -103,14 +121,15 @@ class MixedWindVectorEnv(VectorEnv):
         grid_map = load_map(map)
         self.envs: list[MuJoCoVectorEnv] = []
         try:
-            for kw, n in conditions:
+            for kw, directions in _merge_directions(conditions):
                 self.envs.append(
                     MuJoCoVectorEnv(
-                        int(n),
+                        len(directions),
                         grid_map,
                         grid_config=grid_config,
                         autoreset_mode=autoreset_mode,
                         threads=threads,
+                        wind_directions=directions if "wind_direction" in kw else None,
                         **{**common, **kw},
                     )
                 )
@@ -148,7 +167,11 @@ class MixedWindVectorEnv(VectorEnv):
     @property
     def physics_configs(self) -> tuple:
         """Each slot's :class:`PhysicsConfig` (its weather), in slot order."""
-        return tuple(env.physics_config for env in self.envs for _ in range(env.num_envs))
+        return tuple(
+            dataclasses.replace(env.physics_config, wind_direction=float(d))
+            for env in self.envs
+            for d in env.wind_directions
+        )
 
     @property
     def np_random(self) -> tuple[np.random.Generator, ...]:

@@ -39,7 +39,10 @@ from cpp_mujoco.physics.return_guard import ReturnGuard
 class MuJoCoVectorEnv(GridVectorEnv):
     """N ``MuJoCo-v0`` episodes stepped together. Keywords as ``MuJoCo-v0`` (physics and grid
     options); ``threads``: threads stepping MuJoCo (default 1 — one per core this process may
-    use is the fastest when it has the cores to itself)."""
+    use is the fastest when it has the cores to itself). ``wind_directions``: one direction per
+    env (degrees, as ``wind_direction``) for a batch that flies one weather from several
+    directions — env i flies (and observes) what a single env with ``wind_direction`` =
+    ``wind_directions[i]`` does; ``physics_config`` then records only the first."""
 
     def __init__(
         self,
@@ -50,6 +53,7 @@ class MuJoCoVectorEnv(GridVectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         render_mode: str | None = None,
         threads: int = 1,
+        wind_directions: Any = None,
         **kwargs: Any,
     ):
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
@@ -70,6 +74,16 @@ class MuJoCoVectorEnv(GridVectorEnv):
             if c.return_guard
             else None
         )
+        self.wind_directions = np.full(num_envs, float(c.wind_direction))
+        if wind_directions is not None:
+            given = np.asarray(wind_directions, dtype=float)
+            if given.shape != (num_envs,) or not np.isfinite(given).all():
+                raise ValueError(
+                    f"wind_directions must be {num_envs} finite degrees, got {wind_directions!r}"
+                )
+            for i in np.flatnonzero(given != self.wind_directions).tolist():
+                self.flight.set_wind_direction(i, given[i])
+            self.wind_directions = given
         self._guard_active = np.zeros(num_envs, dtype=bool)
         self._tracking = np.zeros(num_envs)
         self._crash_reason = np.full(num_envs, None, dtype=object)
@@ -84,7 +98,7 @@ class MuJoCoVectorEnv(GridVectorEnv):
         for i in idx.tolist():
             row, col = divmod(int(m.position[i]), m.width)
             self.flight.reset(i, row, col, float(m.budget[i]) * self.unit_energy, rngs[i])
-            m.winds.set(i, c.wind_speed, c.wind_direction)  # observed, as the single env
+            m.winds.set(i, c.wind_speed, self.wind_directions[i])  # observed, as a single env
             if self.guards is not None:
                 self.guards[i].reset()
         self._guard_active[idx] = False
