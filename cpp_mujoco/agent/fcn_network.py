@@ -39,9 +39,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from cpp_mujoco.agent.general_network import POSITION_CHANNEL
-from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL
-from cpp_mujoco.grid.actions import NUM_ACTIONS
+from cpp_mujoco.agent.general_network import POSITION_CHANNEL, check_network_kwargs
+from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL, dense_head
 
 ARCHITECTURE = "general-fcn"  # what a checkpoint of this network records under "architecture"
 LANDING_CHANNEL, TARGET_CHANNEL = 0, 1
@@ -103,13 +102,8 @@ class FCNQNetwork(nn.Module):
         self.coarse = nn.ModuleList(
             nn.Conv2d(c, c, 3, padding=d, dilation=d) for d in self.dilations
         )
-        layers: list[nn.Module] = []
         width_in = 3 * c + fine + self.num_scalars  # max, mean, at the UAV ×2; budget (and wind)
-        for _ in range(num_hidden):
-            layers += [nn.Linear(width_in, hidden), nn.ReLU()]
-            width_in = hidden
-        layers.append(nn.Linear(width_in, NUM_ACTIONS))
-        self.head = nn.Sequential(*layers)
+        self.head = dense_head(width_in, hidden, num_hidden)
 
     def input_cells(self, shape: tuple[int, int]) -> int:
         """Cells a forward pass holds per row (GreedyAgent's chunking): the map's own."""
@@ -191,15 +185,4 @@ def map_mask(grid: torch.Tensor) -> torch.Tensor:
 
 def check_fcn_kwargs(kwargs: object) -> str | None:
     """None if ``kwargs`` can build a :class:`FCNQNetwork`, else what is wrong."""
-    if not isinstance(kwargs, dict):
-        return f"network_kwargs {kwargs!r} are not a dict"
-    unknown = set(kwargs) - set(KWARG_RANGES) - {"wind_inputs"}
-    if unknown:
-        return f"unknown network_kwargs {sorted(unknown)} for the fcn network"
-    for name, (low, high) in KWARG_RANGES.items():
-        value = kwargs.get(name)
-        if type(value) is not int or not low <= value <= high:
-            return f"network_kwargs {name}={value!r} is not an integer in {low}..{high}"
-    if type(kwargs.get("wind_inputs", False)) is not bool:
-        return f"network_kwargs wind_inputs={kwargs['wind_inputs']!r} is not a bool"
-    return None
+    return check_network_kwargs(kwargs, KWARG_RANGES, "fcn")

@@ -31,8 +31,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL
-from cpp_mujoco.grid.actions import NUM_ACTIONS
+from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL, dense_head
 
 POSITION_CHANNEL = 4
 ARCHITECTURE = "general"  # what a checkpoint of this network records under "architecture"
@@ -89,13 +88,7 @@ class GeneralQNetwork(nn.Module):
         self.local_conv = _conv_pair(conv_filters, kernel_size)
         self.global_conv = _conv_pair(conv_filters, kernel_size)
         features = conv_filters * ((local_size - shrink) ** 2 + (global_size - shrink) ** 2)
-        layers: list[nn.Module] = []
-        width_in = features + self.num_scalars
-        for _ in range(num_hidden):
-            layers += [nn.Linear(width_in, hidden), nn.ReLU()]
-            width_in = hidden
-        layers.append(nn.Linear(width_in, NUM_ACTIONS))
-        self.head = nn.Sequential(*layers)
+        self.head = dense_head(features + self.num_scalars, hidden, num_hidden)
 
     def input_cells(self, shape: tuple[int, int]) -> int:
         """Cells of the canvas an H×W map is centred on (a bound on what a forward pass holds
@@ -239,12 +232,18 @@ def pad_grids(grid: np.ndarray, side: int) -> np.ndarray:
 
 def check_general_kwargs(kwargs: object) -> str | None:
     """None if ``kwargs`` can build a :class:`GeneralQNetwork`, else what is wrong."""
+    return check_network_kwargs(kwargs, KWARG_RANGES, "general")
+
+
+def check_network_kwargs(kwargs: object, ranges: dict, label: str) -> str | None:
+    """None if ``kwargs`` are integers within ``ranges`` (each present) and an optional bool
+    ``wind_inputs``, else what is wrong (``label`` names the network)."""
     if not isinstance(kwargs, dict):
         return f"network_kwargs {kwargs!r} are not a dict"
-    unknown = set(kwargs) - set(KWARG_RANGES) - {"wind_inputs"}
+    unknown = set(kwargs) - set(ranges) - {"wind_inputs"}
     if unknown:
-        return f"unknown network_kwargs {sorted(unknown)} for the general network"
-    for name, (low, high) in KWARG_RANGES.items():
+        return f"unknown network_kwargs {sorted(unknown)} for the {label} network"
+    for name, (low, high) in ranges.items():
         value = kwargs.get(name)
         if type(value) is not int or not low <= value <= high:
             return f"network_kwargs {name}={value!r} is not an integer in {low}..{high}"

@@ -28,6 +28,17 @@ NFZ_CHANNEL = 2
 WIND_GAIN = 5.0
 
 
+def dense_head(width_in: int, hidden: int, num_hidden: int) -> nn.Sequential:
+    """``num_hidden`` ReLU layers of ``hidden`` units, then the Q-values: every network's head
+    (its parameter names, ``head.0.weight`` …, are what checkpoints hold)."""
+    layers: list[nn.Module] = []
+    for _ in range(num_hidden):
+        layers += [nn.Linear(width_in, hidden), nn.ReLU()]
+        width_in = hidden
+    layers.append(nn.Linear(width_in, NUM_ACTIONS))
+    return nn.Sequential(*layers)
+
+
 class QNetwork(nn.Module):
     """Q(s, ·) for an H×W map. ``forward(grid, scalars)``: grid (B,5,H,W) float, scalars (B,1)
     the scaled budget, or (B,4) budget and wind with ``wind_inputs`` (:func:`scalar_inputs`)."""
@@ -51,13 +62,8 @@ class QNetwork(nn.Module):
         self.pad = kernel_size // 2
         self.conv1 = nn.Conv2d(IN_CHANNELS, conv_filters, kernel_size, padding=0)
         self.conv2 = nn.Conv2d(conv_filters, conv_filters, kernel_size, padding=self.pad)
-        layers: list[nn.Module] = []
         width_in = conv_filters * height * width + self.num_scalars  # + budget (and wind)
-        for _ in range(num_hidden):
-            layers += [nn.Linear(width_in, hidden), nn.ReLU()]
-            width_in = hidden
-        layers.append(nn.Linear(width_in, NUM_ACTIONS))
-        self.head = nn.Sequential(*layers)
+        self.head = dense_head(width_in, hidden, num_hidden)
 
     def pad_input(self, grid: torch.Tensor) -> torch.Tensor:
         """Shape-keeping padding of the first layer's input: ones for no-fly, zeros elsewhere."""

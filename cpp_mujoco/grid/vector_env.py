@@ -213,20 +213,7 @@ class GridVectorEnv(VectorEnv):
                 f"env state 'pending_reset' is {pending.dtype}{list(pending.shape)}; "
                 f"this env needs bool[{self.num_envs}]"
             )
-        rng_states = state.pop("rng")
-        if not isinstance(rng_states, (list, tuple)) or len(rng_states) != self.num_envs:
-            count = len(rng_states) if isinstance(rng_states, (list, tuple)) else 1
-            raise ValueError(
-                f"env state holds {count} generator state(s); this env has {self.num_envs}"
-            )
-        rngs = []
-        for i, rng_state in enumerate(rng_states):
-            rng = seeding.np_random()[0]
-            try:
-                rng.bit_generator.state = rng_state
-            except (TypeError, ValueError, KeyError) as exc:
-                raise ValueError(f"env state 'rng'[{i}] is not a generator state ({exc})") from None
-            rngs.append(rng)
+        rngs = restore_generators(state.pop("rng"), self.num_envs)
         self.mdp.load_state_dict(state)  # validates all of its arrays before it sets any
         self._pending_reset = pending.copy()
         self._rngs = rngs
@@ -246,3 +233,22 @@ class GridVectorEnv(VectorEnv):
         info = self.mdp.info()
         info.update({f"_{k}": self._all for k in list(info)})
         return info
+
+
+def restore_generators(states: Any, num_envs: int) -> list[np.random.Generator]:
+    """``num_envs`` generators from a checkpoint's ``rng`` list (``bit_generator.state`` each);
+    ``ValueError`` naming what does not fit, before anything is changed."""
+    if not isinstance(states, (list, tuple)) or len(states) != num_envs:
+        count = len(states) if isinstance(states, (list, tuple)) else 1
+        raise ValueError(
+            f"env state holds {count} generator state(s); this env has {num_envs} slots"
+        )
+    rngs = []
+    for i, rng_state in enumerate(states):
+        rng = seeding.np_random()[0]
+        try:
+            rng.bit_generator.state = rng_state
+        except (TypeError, ValueError, KeyError) as exc:
+            raise ValueError(f"env state 'rng'[{i}] is not a generator state ({exc})") from None
+        rngs.append(rng)
+    return rngs

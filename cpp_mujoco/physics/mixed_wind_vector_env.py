@@ -31,12 +31,12 @@ from typing import Any
 
 import numpy as np
 from gymnasium.spaces import MultiDiscrete
-from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.mdp import GridConfig
+from cpp_mujoco.grid.vector_env import restore_generators
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
 
@@ -277,18 +277,6 @@ class MixedWindVectorEnv(VectorEnv):
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         """Restore the slots' generators (``ValueError`` if they do not fit); then :meth:`reset`."""
         states = state.get("rng") if isinstance(state, Mapping) else None
-        if not isinstance(states, (list, tuple)) or len(states) != self.num_envs:
-            count = len(states) if isinstance(states, (list, tuple)) else 0
-            raise ValueError(
-                f"env state holds {count} generator states; this env has {self.num_envs} slots"
-            )
-        rngs = []
-        for i, rng_state in enumerate(states):
-            rng = seeding.np_random()[0]
-            try:
-                rng.bit_generator.state = rng_state
-            except (TypeError, ValueError, KeyError) as exc:
-                raise ValueError(f"env state 'rng'[{i}] is not a generator state ({exc})") from None
-            rngs.append(rng)
+        rngs = restore_generators(states, self.num_envs)
         for env, s in zip(self.envs, self.slices, strict=True):
             env._rngs = rngs[s]  # the grid vector env's own generators (GridVectorEnv.np_random)
