@@ -1,10 +1,10 @@
-"""N quadrotors flying grid actions together: one numpy control law, MuJoCo's batch stepping.
+"""N quadrotors flying grid actions together: one control tick for all, MuJoCo's batch stepping.
 
 Why this shape: a single :class:`~cpp_mujoco.physics.flight.Flight` spends about as long in its
 Python control tick as MuJoCo spends on the five physics steps between ticks. Here the tick's
 work (references, controller, energy, battery, wind, drag, failure checks) is done once for all
-drones as arrays (:mod:`~cpp_mujoco.physics.batched_control`,
-:mod:`~cpp_mujoco.physics.batched_power`), and the physics of all drones is one call of
+drones, as arrays (:mod:`~.batched_control`, :mod:`~.batched_power`) or compiled loops
+(:mod:`~.compiled_tick`), and the physics of all drones is one call of
 ``mujoco.batch.Batch.step`` (MuJoCo ≥ 3.17): C loops over the drones on ``threads`` threads
 (the caller's included) without the GIL, no Python call per drone. The batch is *persistent*:
 each drone keeps its own ``MjData`` inside it, and its state row (:attr:`BatchedFlight.state`,
@@ -43,10 +43,14 @@ from cpp_mujoco.physics.batched_control import (
 )
 from cpp_mujoco.physics.batched_power import BatchedBattery, BatchedEnergy, BatchedWind
 from cpp_mujoco.physics.battery import CUTOFF
+from cpp_mujoco.physics.compiled_tick import choose_tick
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import EMERGENCY_LANDING, Flight, ground_contact
 
 MOVE, HOVER, LAND = 0, 1, 2  # the three kinds of macro-action
+# the failed state checks of a tick, in the single flight's order
+FAILURES = ("numerical divergence (NaN or unstable acceleration)", "left the arena",
+            "flipped over", "diverged from the reference")  # fmt: skip
 
 
 @dataclass
@@ -78,7 +82,10 @@ def _column(model: mujoco.MjModel, component: mujoco.mjtState) -> int:
 class BatchedFlight:
     """``n`` drones over one map and model. ``coverage``: the (n, H·W) bool rows the cameras
     mark (the env passes its MDP's); ``threads``: how many threads step the physics (the
-    caller's included). The batch steps a copy of ``model``, made here."""
+    caller's included); ``tick``: the control tick's arithmetic, ``"numpy"``, ``"compiled"``
+    (numba, the ``fast`` extra) or ``"auto"`` (compiled where numba imports; None reads
+    ``CPP_MUJOCO_TICK``, default auto), :attr:`tick` the one chosen — both fly the same
+    doubles. The batch steps a copy of ``model``, made here."""
 
     def __init__(
         self,
@@ -88,6 +95,7 @@ class BatchedFlight:
         n: int,
         coverage: np.ndarray,
         threads: int = 1,
+        tick: str | None = None,
     ):
         # the single flight holds every constant (parameters, tolerances, geometry, the scalar
         # models whose twins fly here): one place to derive them
@@ -130,6 +138,8 @@ class BatchedFlight:
         self.nfz_violations = np.zeros(n, dtype=np.int64)
         self.max_track_error = np.zeros(n)
         self.no_fly = np.asarray(grid_map.nfz, dtype=bool).reshape(-1)
+        self._compiled = choose_tick(self, tick)  # None: the numpy tick
+        self.tick = "numpy" if self._compiled is None else "compiled"
 
     def close(self) -> None:
         """Nothing to release: the batch's threads idle without CPU and go with the object."""
@@ -251,8 +261,9 @@ class BatchedFlight:
         """The tick loop of :meth:`Flight._fly` over the drones still flying: one control tick
         for all of them (:meth:`_tick`), then their physics steps (one C call)."""
         k, dt = self.k, self.dt
+        tick = self._tick if self._compiled is None else self._compiled
         while np.count_nonzero(a.flying):
-            go = self._tick(np.flatnonzero(a.flying), a)
+            go = tick(np.flatnonzero(a.flying), a)
             if go.size:
                 self._step(go, k)
                 a.t[go] += dt
@@ -292,37 +303,15 @@ class BatchedFlight:
         diverged = track & (off2 + e[:, 2] * e[:, 2] > max_err2)
         ended = failed | diverged
         for j in np.flatnonzero(ended).tolist():  # in the single flight's order of checks
-            res["failure"][i[j]] = (
-                "numerical divergence (NaN or unstable acceleration)" if broken[j]
-                else "left the arena" if out[j]
-                else "flipped over" if flipped[j]
-                else "diverged from the reference"
-            )  # fmt: skip
+            kind = 0 if broken[j] else 1 if out[j] else 2 if flipped[j] else 3
+            res["failure"][i[j]] = FAILURES[kind]
         # ---- camera frames due, then: is the action done?
         due = ~ended & (t0[i] + t[i] >= self.camera.next_frame[i])
         if np.count_nonzero(due):
             res["newly_seen"][i[due]] += self.camera.capture(i[due])
         ti = t[i]
         for j in np.flatnonzero(~ended & (~on | a.land[i])).tolist():
-            d = int(i[j])
-            touch = self._ground_contact(d)
-            if not on[j]:
-                if touch is not None or ti[j] >= c.fall_time_limit:
-                    res["failure"][d] = self.battery.failure[d]
-                    ended[j] = True
-            elif touch is not None:
-                if not touch:
-                    res["failure"][d] = "hit the ground with the airframe, not the landing gear"
-                elif a.emergency[d] is not None:
-                    res["failure"][d] = a.emergency[d]
-                    self._settle(d)
-                else:
-                    res["landed"][d] = res["arrived"][d] = True
-                    self._settle(d)
-                ended[j] = True
-            elif ti[j] >= a.limit[d]:
-                res["failure"][d] = "no touchdown within the landing time limit"
-                ended[j] = True
+            ended[j] = self._landing_done(int(i[j]), a)
         cruise = ~ended & on & ~a.land[i] & (ti >= a.nominal[i])
         if np.count_nonzero(cruise):
             g = pos - goal[i]
@@ -340,11 +329,43 @@ class BatchedFlight:
                       v_ref[keep], a_ref[keep], a)  # fmt: skip
         return go
 
+    def _landing_done(self, d: int, a: _Action) -> bool:
+        """Whether landing or falling drone ``d``'s action ends (contact, time limit)."""
+        res, t = a.res, a.t[d]
+        touch = self._ground_contact(d)
+        if not self.motors_on[d]:
+            if touch is None and t < self.config.fall_time_limit:
+                return False
+            res["failure"][d] = self.battery.failure[d]
+        elif touch is not None:
+            if not touch:
+                res["failure"][d] = "hit the ground with the airframe, not the landing gear"
+            elif a.emergency[d] is not None:
+                res["failure"][d] = a.emergency[d]
+                self._settle(d)
+            else:
+                res["landed"][d] = res["arrived"][d] = True
+                self._settle(d)
+        elif t >= a.limit[d]:
+            res["failure"][d] = "no touchdown within the landing time limit"
+        else:
+            return False
+        return True
+
+    def _failsafe(self, d: np.ndarray, p: np.ndarray, a: _Action) -> None:
+        """The battery failsafe: drones ``d`` at ``p`` (m, 3) land where they are, on the
+        reserve (the cut-off's or the budget's)."""
+        c, one = self.config, self.one
+        a.emergency[d] = np.where(self.battery.below_cutoff[d], CUTOFF, EMERGENCY_LANDING)
+        a.land[d], a.t[d], a.limit[d] = True, 0.0, c.land_time_limit
+        end = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z + 0.3)], 1)
+        self.refs.set(d, p, end, np.full(len(d), c.land_duration), True)
+        a.goal[d] = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z)], 1)
+
     def _control(self, i, pos, vel, R, omega, act, p_ref, v_ref, a_ref, a: _Action) -> None:
         """Wind, control, energy, battery and drag of one tick: the drones' inputs (ctrl and drag
         force, written into their state rows for the next step)."""
-        c, dt = self.config, self.dt
-        t, limit, land, emergency, goal = a.t, a.limit, a.land, a.emergency, a.goal
+        dt, t, emergency = self.dt, a.t, a.emergency
         w = self.wind.velocity(i, pos, dt)  # every tick: the gusts advance for every drone
         f = np.zeros((i.size, 4))
         on = self.motors_on[i]
@@ -374,15 +395,6 @@ class BatchedFlight:
                 & (self.battery.below_cutoff[j] | (self.energy_used[j] >= self.capacity[j]))
             )  # fmt: skip
             if np.count_nonzero(fail):  # the battery failsafe: land where it is, on the reserve
-                d = j[fail]
-                p = pos[on][fail]
-                emergency[d] = np.where(self.battery.below_cutoff[d], CUTOFF, EMERGENCY_LANDING)
-                land[d] = True
-                t[d] = 0.0
-                limit[d] = c.land_time_limit
-                one = self.one
-                end = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z + 0.3)], 1)
-                self.refs.set(d, p, end, np.full(len(d), c.land_duration), True)
-                goal[d] = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z)], 1)
+                self._failsafe(j[fail], pos[on][fail], a)
         self.state[i, self.ctrl_cols] = f
         self.state[i, self.force_cols] = drag_force(self.one.drag.half_rho_cda, vel, w)

@@ -249,33 +249,37 @@ class BatchedBattery:
 
 class NoiseBlocks:
     """Per drone, the standard normals its scalar model would pop: blocks of ``size`` drawn
-    from the drone's generator when the last one runs out, taken from the end."""
+    from the drone's generator when the last one runs out, taken from the end. A row holds
+    the normals left and, once :meth:`refill` has drawn the next block, that block below
+    them: popped from the end, the same sequence (the compiled tick pops the rows itself)."""
+
+    SPARE = 8  # the most normals one take asks for
 
     def __init__(self, n: int, size: int):
         self.size = size
-        self.block = np.zeros((n, size))
+        self.block = np.zeros((n, size + self.SPARE))
         self.left = np.zeros(n, dtype=np.int64)
         self.rngs: list = [None] * n
 
     def reset(self, i: int, rng: np.random.Generator) -> None:
         self.rngs[i], self.left[i] = rng, 0
 
+    def refill(self, i: np.ndarray, count: int) -> None:
+        """Drones of ``i`` with fewer than ``count`` normals left draw their next block now,
+        in the take that needs it, as the scalar model does."""
+        size = self.size
+        for d in i[self.left[i] < count].tolist():
+            left = self.left[d]
+            self.block[d, size : size + left] = self.block[d, :left].copy()
+            self.block[d, :size] = self.rngs[d].standard_normal(size)
+            self.left[d] = size + left
+
     def take(self, i: np.ndarray, count: int) -> np.ndarray:
         """(len(i), count) normals, in pop order, for drones ``i``."""
+        self.refill(i, count)
         left = self.left[i]
-        if (left >= count).all():
-            cols = left[:, None] - 1 - np.arange(count)
-            out = self.block[i[:, None], cols]
-            self.left[i] = left - count
-            return out
-        out = np.empty((len(i), count))
-        for j, d in enumerate(i.tolist()):
-            for c in range(count):
-                if self.left[d] == 0:
-                    self.block[d] = self.rngs[d].standard_normal(self.size)
-                    self.left[d] = self.size
-                self.left[d] -= 1
-                out[j, c] = self.block[d, self.left[d]]
+        out = self.block[i[:, None], left[:, None] - 1 - np.arange(count)]
+        self.left[i] = left - count
         return out
 
 

@@ -1,0 +1,113 @@
+"""The compiled control tick (numba, the ``fast`` extra) flies the numpy tick's doubles."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics import compiled_tick
+from cpp_mujoco.physics.battery import CUTOFF
+from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
+
+# an open 5×6 map: landing strip in the middle row, targets around, one no-fly cell
+MAP = GridMap.from_ascii(["TTTTTT", "T..N.T", "TLLLLT", "T....T", "TTTTTT"], name="open")
+WIND = {"wind_speed": 9.0, "wind_direction": 270.0, "turbulence": "moderate"}
+
+
+def _fly_both(kwargs: dict, budgets, actions_of, steps: int = 30, perturb=None) -> list:
+    """The same seeds, budgets and actions through a compiled and a numpy batched env: every
+    observation, reward, flag, info and each drone's whole MuJoCo state row must be the same
+    doubles after every step. ``perturb(state, cols)`` edits both envs' state rows after the
+    reset. Returns each episode's ending (crash reason, "landed", or None: still flying)."""
+    pytest.importorskip("numba")
+    n = len(budgets)
+    envs = [MuJoCoVectorEnv(n, MAP, tick=tick, **kwargs) for tick in ("compiled", "numpy")]
+    assert [e.flight.tick for e in envs] == ["compiled", "numpy"]
+    for env in envs:
+        env.reset(seed=[100 + i for i in range(n)], options={"budget": np.array(budgets)})
+        if perturb is not None:
+            perturb(env.flight.state, env.flight.cols)
+    ended: list = [None] * n
+    for step in range(steps):
+        actions = actions_of(step, n)
+        (obs, rew, term, trunc, info), (o2, r2, t2, tr2, i2) = (e.step(actions) for e in envs)
+        where = f"step {step}"
+        for key in obs:
+            np.testing.assert_array_equal(obs[key], o2[key], err_msg=f"{where}: {key}")
+        for a, b in ((rew, r2), (term, t2), (trunc, tr2)):
+            np.testing.assert_array_equal(a, b, err_msg=where)
+        for key in info:
+            np.testing.assert_array_equal(info[key], i2[key], err_msg=f"{where}: {key}")
+        np.testing.assert_array_equal(envs[0].flight.state, envs[1].flight.state, err_msg=where)
+        for i in np.flatnonzero(term & np.equal(ended, None)).tolist():
+            ended[i] = "landed" if info["landed"][i] else info["crash_reason"][i]
+        if all(e is not None for e in ended):
+            break
+    for env in envs:
+        env.close()
+    return ended
+
+
+def _wander(seed: int, land: float):
+    """Random moves (hovers where the map rejects one), a landing with probability ``land``."""
+    rng = np.random.default_rng(seed)
+    return lambda step, n: np.where(rng.random(n) < land, LAND, rng.integers(0, 4, size=n))
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [{}, WIND, {**WIND, "gust_std": 1.0, "power_model": "momentum", "return_guard": True}],
+    ids=["calm", "wind-9-moderate", "gusts-momentum-guard"],
+)
+def test_compiled_and_numpy_ticks_fly_the_same_episodes(kwargs):
+    """Moves, hovers and landings in calm air and in 9 m/s moderate turbulence (forward-flight
+    power, per-drone gusts), small budgets running out (emergency landings): the same cells,
+    budgets, energies, positions and failures to the last bit."""
+    with np.errstate(all="ignore"):
+        ended = _fly_both(kwargs, [3, 5, 8, 12, 4, 20], _wander(7, 0.1))
+    assert "landed" in ended
+
+
+def test_failures_and_the_battery_failsafe_end_alike():
+    """A diverging drone, one so fast that the pack cannot carry its load (motors cut, a fall),
+    one upside down, then a cut-off landing (the failsafe) for the rest."""
+
+    def perturb(state, cols):
+        q, v = cols[0], cols[1]
+        state[0, v.start] = 1e6
+        state[1, v.start] = 1e12
+        state[2, q.start + 3 : q.start + 7] = (0.0, 1.0, 0.0, 0.0)
+
+    actions = [NORTH, SOUTH, EAST, WEST] * 4
+    with np.errstate(all="ignore"):
+        ended = _fly_both({"battery_cutoff_v": 3.95}, [10] * 5, lambda s, n: np.full(n, actions[s]),
+                          steps=len(actions), perturb=perturb)  # fmt: skip
+    assert ended[0] == "numerical divergence (NaN or unstable acceleration)"
+    assert ended[1].startswith("battery")
+    assert ended[2] == "flipped over"
+    assert ended[3:] == [CUTOFF, CUTOFF]
+
+
+def test_an_airspeed_off_the_turbulence_table_flies_the_numpy_control(monkeypatch):
+    """A tick with a turbulence time scale the compiled tick has no row for (here: none fits)
+    flies the numpy twin's control on the same state arrays: still the same doubles."""
+    monkeypatch.setattr(compiled_tick, "_MAX_KEYS", 0)
+    _fly_both(WIND, [5, 8, 12], _wander(3, 0.2), steps=5)
+
+
+def test_the_tick_switch(monkeypatch):
+    """``tick``: "auto" flies compiled where numba imports and numpy where it does not;
+    "compiled" without numba names the extra to install; CPP_MUJOCO_TICK is the default."""
+    with pytest.raises(ValueError, match="tick must be one of"):
+        MuJoCoVectorEnv(1, MAP, tick="fast")
+    monkeypatch.setenv("CPP_MUJOCO_TICK", "numpy")
+    assert MuJoCoVectorEnv(1, MAP).flight.tick == "numpy"
+    monkeypatch.delenv("CPP_MUJOCO_TICK")
+    monkeypatch.setitem(sys.modules, "numba", None)  # as if numba were not installed
+    assert MuJoCoVectorEnv(1, MAP).flight.tick == "numpy"
+    with pytest.raises(ImportError, match=r"pip install -e \.\[fast\]"):
+        MuJoCoVectorEnv(1, MAP, tick="compiled")
