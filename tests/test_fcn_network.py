@@ -24,7 +24,9 @@ def _one_thread(one_thread):
     """Small nets on a shared 2-core machine: one torch thread."""
 
 
-def _tensors(size: int, seed: int, n: int = 6, steps: int = 6, wind: bool = False):
+def _tensors(
+    size: int, seed: int, n: int = 6, steps: int = 6, wind: bool = False, home: bool = False
+):
     """A batch of mid-episode observations on a generated map (some coverage)."""
     mdp = GridMDP(generate_from_seed(seed, size), n, size_config(size))
     mdp.reset(np.random.default_rng(seed))
@@ -34,7 +36,7 @@ def _tensors(size: int, seed: int, n: int = 6, steps: int = 6, wind: bool = Fals
     obs = mdp.observation()
     if wind:
         obs["wind"] = rng.normal(size=(n, 2)).astype(np.float32)
-    return observation_to_tensors(obs, 75.0, wind_inputs=wind)
+    return observation_to_tensors(obs, 75.0, wind_inputs=wind, home_input=home)
 
 
 # ------------------------------------------------------------------------------------ network
@@ -149,7 +151,14 @@ def test_cli_option_selects_the_network():
     args = parser.parse_args(["train-general", "--out", "x", "--architecture", "fcn"])
     config = config_from_args(args)
     assert config.architecture == "fcn" and "--architecture fcn" in resume_command(args)
-    assert set(config.network_kwargs()) == {"conv_filters", "hidden", "num_hidden", "max_side"}
+    assert set(config.network_kwargs()) == {
+        "conv_filters", "hidden", "num_hidden", "max_side", "home_input"
+    }  # fmt: skip
+    assert config.home_input and config.network_kwargs()["home_input"]  # on for new runs
+    off = config_from_args(parser.parse_args(["train-general", "--out", "x", "--no-home-input"]))
+    assert not off.home_input and "--no-home-input" in resume_command(
+        parser.parse_args(["train-general", "--out", "x", "--no-home-input"])
+    )
     assert GeneralTrainConfig().architecture == "global-local"
     with pytest.raises(SystemExit):
         parser.parse_args(["train-general", "--out", "x", "--architecture", "cnn"])
@@ -173,8 +182,8 @@ def test_smoke_training_saves_an_fcn_agent(tmp_path):
     assert trainer.updates == 20
     agent = load_agent(tmp_path / "agent.pt")
     assert isinstance(agent.network, FCNQNetwork)
-    assert agent.network.kwargs == trainer.online.kwargs
-    grid, scalars = _tensors(16, 9)
+    assert agent.network.kwargs == trainer.online.kwargs and agent.network.home_input
+    grid, scalars = _tensors(16, 9, home=True)
     trainer.online.eval()
     assert torch.equal(agent.network(grid, scalars), trainer.online(grid, scalars))
     state = load_checkpoint(tmp_path / "checkpoint.pt")

@@ -8,8 +8,9 @@ is, which are read twice —
 * **pooled**: the max and the mean of every feature over the map's cells (what is anywhere);
 * **at the UAV**: the features of the UAV's own cell (what is around it, and in which direction),
 
-then the budget (and the wind, × ``WIND_GAIN``, with ``wind_inputs``) is appended and dense layers
-give the 5 Q-values, as in the other networks. The same weights fit any H×W.
+then the budget (and the wind, × ``WIND_GAIN``, with ``wind_inputs``; the moves home with
+``home_input``, :mod:`~cpp_mujoco.agent.home_input`) is appended and dense layers give the 5
+Q-values, as in the other networks. The same weights fit any H×W.
 
 Layers (``conv_filters`` = C): the 5 grid channels plus three — the in-map mask and each cell's row
 and column offset from the UAV ÷ ``max_side`` (pooling forgets where a cell lies; the offsets let
@@ -39,7 +40,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from cpp_mujoco.agent.general_network import POSITION_CHANNEL, check_network_kwargs
+from cpp_mujoco.agent.general_network import POSITION_CHANNEL, check_network_kwargs, num_scalars
 from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL, dense_head
 
 ARCHITECTURE = "general-fcn"  # what a checkpoint of this network records under "architecture"
@@ -67,8 +68,9 @@ def dilations_for(max_side: int) -> tuple[int, ...]:
 
 class FCNQNetwork(nn.Module):
     """Q(s, ·) for a map of any size. ``forward(grid, scalars)`` as :class:`QNetwork`'s: grid
-    (B,5,H,W) float (any H, W; one size per call), scalars (B,1) the scaled budget, or (B,4)
-    budget and wind with ``wind_inputs``."""
+    (B,5,H,W) float (any H, W; one size per call), scalars (B, :attr:`num_scalars`): the scaled
+    budget, then wind with ``wind_inputs`` and the moves home with ``home_input``
+    (:func:`~cpp_mujoco.agent.network.scalar_inputs`)."""
 
     any_size = True  # GreedyAgent: no map-size check
 
@@ -79,6 +81,7 @@ class FCNQNetwork(nn.Module):
         num_hidden: int = 3,
         max_side: int = 32,
         wind_inputs: bool = False,
+        home_input: bool = False,
     ):
         super().__init__()
         if conv_filters < 2:
@@ -87,12 +90,12 @@ class FCNQNetwork(nn.Module):
             )
         self.kwargs = dict(
             conv_filters=conv_filters, hidden=hidden, num_hidden=num_hidden, max_side=max_side,
-            wind_inputs=bool(wind_inputs),
+            wind_inputs=bool(wind_inputs), home_input=bool(home_input),
         )  # fmt: skip
         self.max_side = max_side
         self.height = self.width = None  # any map size
-        self.wind_inputs = bool(wind_inputs)
-        self.num_scalars = 4 if self.wind_inputs else 1
+        self.wind_inputs, self.home_input = bool(wind_inputs), bool(home_input)
+        self.num_scalars = num_scalars(self.wind_inputs, self.home_input)
         self.dilations = dilations_for(max_side)
         self.reach = 2 * sum(self.dilations) + FINE_RADIUS  # cells seen from the UAV's cell
         c, fine = conv_filters, conv_filters // 2
@@ -102,7 +105,7 @@ class FCNQNetwork(nn.Module):
         self.coarse = nn.ModuleList(
             nn.Conv2d(c, c, 3, padding=d, dilation=d) for d in self.dilations
         )
-        width_in = 3 * c + fine + self.num_scalars  # max, mean, at the UAV ×2; budget (and wind)
+        width_in = 3 * c + fine + self.num_scalars  # max, mean, at the UAV ×2; the scalars
         self.head = dense_head(width_in, hidden, num_hidden)
 
     def input_cells(self, shape: tuple[int, int]) -> int:

@@ -43,6 +43,9 @@ _GENERAL_HELP = {
     "num_hidden": "dense layers before the Q-values",
     "max_side": "largest map side: the global-local network's canvas holds it, the fcn's "
     "receptive field covers it (0 = the largest of --sizes)",
+    "home_input": "the network also reads the moves home (fewest moves from the UAV's cell to "
+    "a landing cell, / the budget scale); --resume keeps the run's own setting (off for runs "
+    "from before the option)",
     "eval_budget_step": "validation flies every n-th budget of each size class",
     "budget_scale": "network input = budget / this (0 = the largest budget of --sizes)",
 }

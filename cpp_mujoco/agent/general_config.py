@@ -56,6 +56,11 @@ class GeneralTrainConfig(TrainConfig):
     # the canvas fits maps up to this side; fcn: the receptive field covers it (0: the largest
     # of sizes)
     max_side: int = 0
+    # the network also reads the fewest moves from the UAV's cell to a landing cell, ÷ the budget
+    # scale (:mod:`~cpp_mujoco.agent.home_input`): the safe greedy planner's way home, which a
+    # small net must otherwise infer from the pixels of an unseen map. Either architecture.
+    # A config stored before the option reads False (:meth:`from_dict`): such runs had none
+    home_input: bool = True
     # --- defaults that differ from the per-map agent's -----------------------------------------
     buffer_size: int = 200_000  # many maps: a longer memory (≈ 35 MB packed)
     total_updates: int = 200_000  # a skill, not a tour: a GPU or a long CPU run
@@ -104,6 +109,11 @@ class GeneralTrainConfig(TrainConfig):
         if self.init_from:
             raise ValueError("the general agent starts from random weights (init_from is unused)")
 
+    @classmethod
+    def from_dict(cls, data: dict) -> GeneralTrainConfig:
+        """A stored config; one without ``home_input`` is from before it: its network had none."""
+        return super().from_dict({"home_input": False, **data})
+
     @property
     def input_budget_scale(self) -> float:
         """budget / this is the network's input; 0 means the largest budget of the sizes."""
@@ -119,4 +129,8 @@ class GeneralTrainConfig(TrainConfig):
         general_network.GeneralQNetwork` or :class:`~cpp_mujoco.agent.fcn_network.FCNQNetwork`."""
         names = FCN_FIELDS if self.architecture == "fcn" else NETWORK_FIELDS
         kwargs = {name: getattr(self, name) for name in names}
-        return {**kwargs, "max_side": self.max_side or max(self.sizes)}
+        return {
+            **kwargs,
+            "max_side": self.max_side or max(self.sizes),
+            "home_input": self.home_input,
+        }

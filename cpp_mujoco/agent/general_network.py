@@ -10,12 +10,13 @@ no-fly outside the map, S = max(``max_side``, H, W) — and reads it twice:
   the landing zone and the walls lie; with the default 63 → 21 each global cell is 3×3 cells).
 
 Two unpadded ("valid") 5×5 convolutions per view, as in Theile et al.'s code, then both views
-flattened, the budget (and the observed wind, × ``WIND_GAIN``, like ``QNetwork(wind_inputs=True)``)
-appended, three dense layers of 256 and the 5 Q-values. Every tensor after the centring has a fixed
-shape, so one set of weights flies every map size; and because the canvas has a fixed side for all
-maps up to ``max_side``, a map padded with no-fly cells gives exactly the Q-values of the map
-itself — a mixed 16/32 minibatch is padded to 32×32 and stacked (:func:`pad_grids`). The views
-are computed from the map without building the canvas (:func:`centred_views`).
+flattened, the budget (and the observed wind, × ``WIND_GAIN``, like ``QNetwork(wind_inputs=True)``;
+with ``home_input`` the moves home, :mod:`~cpp_mujoco.agent.home_input`) appended, three dense
+layers of 256 and the 5 Q-values. Every tensor after the centring has a fixed shape, so one set of
+weights flies every map size; and because the canvas has a fixed side for all maps up to
+``max_side``, a map padded with no-fly cells gives exactly the Q-values of the map itself — a
+mixed 16/32 minibatch is padded to 32×32 and stacked (:func:`pad_grids`). The views are computed
+from the map without building the canvas (:func:`centred_views`).
 
 The alternative, measured against it: :mod:`cpp_mujoco.agent.fcn_network`, fully convolutional
 with global pooling (no flatten at all, also size-independent, but it must learn long-range
@@ -45,12 +46,14 @@ KWARG_RANGES = {
     "hidden": (1, 16384),
     "num_hidden": (0, 16),
 }
+INPUT_FLAGS = ("wind_inputs", "home_input")  # optional bool network_kwargs: the scalar inputs
 
 
 class GeneralQNetwork(nn.Module):
     """Q(s, ·) for a map of any size. ``forward(grid, scalars)`` as :class:`QNetwork`'s: grid
-    (B,5,H,W) float (any H, W; one size per call), scalars (B,1) the scaled budget, or (B,4)
-    budget and wind with ``wind_inputs``."""
+    (B,5,H,W) float (any H, W; one size per call), scalars (B, :attr:`num_scalars`): the scaled
+    budget, then wind with ``wind_inputs`` and the moves home with ``home_input``
+    (:func:`~cpp_mujoco.agent.network.scalar_inputs`)."""
 
     any_size = True  # GreedyAgent: no map-size check
 
@@ -64,6 +67,7 @@ class GeneralQNetwork(nn.Module):
         hidden: int = 256,
         num_hidden: int = 3,
         wind_inputs: bool = False,
+        home_input: bool = False,
     ):
         super().__init__()
         if local_size % 2 != 1:
@@ -79,12 +83,12 @@ class GeneralQNetwork(nn.Module):
         self.kwargs = dict(
             local_size=local_size, global_size=global_size, max_side=max_side,
             conv_filters=conv_filters, kernel_size=kernel_size, hidden=hidden,
-            num_hidden=num_hidden, wind_inputs=bool(wind_inputs),
+            num_hidden=num_hidden, wind_inputs=bool(wind_inputs), home_input=bool(home_input),
         )  # fmt: skip
         self.local_size, self.global_size, self.max_side = local_size, global_size, max_side
         self.height = self.width = None  # any map size
-        self.wind_inputs = bool(wind_inputs)
-        self.num_scalars = 4 if self.wind_inputs else 1
+        self.wind_inputs, self.home_input = bool(wind_inputs), bool(home_input)
+        self.num_scalars = num_scalars(self.wind_inputs, self.home_input)
         self.local_conv = _conv_pair(conv_filters, kernel_size)
         self.global_conv = _conv_pair(conv_filters, kernel_size)
         features = conv_filters * ((local_size - shrink) ** 2 + (global_size - shrink) ** 2)
@@ -235,18 +239,25 @@ def check_general_kwargs(kwargs: object) -> str | None:
     return check_network_kwargs(kwargs, KWARG_RANGES, "general")
 
 
+def num_scalars(wind_inputs: bool, home_input: bool) -> int:
+    """Width of the scalar inputs: the budget, 3 for the wind, 1 for the moves home."""
+    return 1 + 3 * bool(wind_inputs) + bool(home_input)
+
+
 def check_network_kwargs(kwargs: object, ranges: dict, label: str) -> str | None:
-    """None if ``kwargs`` are integers within ``ranges`` (each present) and an optional bool
-    ``wind_inputs``, else what is wrong (``label`` names the network)."""
+    """None if ``kwargs`` are integers within ``ranges`` (each present) and optional bools
+    :data:`INPUT_FLAGS`, else what is wrong (``label`` names the network). A file without a
+    flag is from before it: the input is off."""
     if not isinstance(kwargs, dict):
         return f"network_kwargs {kwargs!r} are not a dict"
-    unknown = set(kwargs) - set(ranges) - {"wind_inputs"}
+    unknown = set(kwargs) - set(ranges) - set(INPUT_FLAGS)
     if unknown:
         return f"unknown network_kwargs {sorted(unknown)} for the {label} network"
     for name, (low, high) in ranges.items():
         value = kwargs.get(name)
         if type(value) is not int or not low <= value <= high:
             return f"network_kwargs {name}={value!r} is not an integer in {low}..{high}"
-    if type(kwargs.get("wind_inputs", False)) is not bool:
-        return f"network_kwargs wind_inputs={kwargs['wind_inputs']!r} is not a bool"
+    for flag in INPUT_FLAGS:
+        if type(kwargs.get(flag, False)) is not bool:
+            return f"network_kwargs {flag}={kwargs[flag]!r} is not a bool"
     return None

@@ -25,6 +25,7 @@ from __future__ import annotations
 import os
 import time
 from collections import deque
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -78,12 +79,7 @@ class GeneralTrainer(Trainer):
         self.val_pool = MapPool.generate(c.sizes, c.val_maps_per_size, c.val_seed)
         self.env = MultiMapVectorEnv(self.pool, c.num_envs, c.episodes_per_map)
         torch.manual_seed(c.seed)
-        self.online = build_network(c).to(self.device)
-        self.target = build_network(c).to(self.device)
-        self.target.load_state_dict(self.online.state_dict())
-        self.optimizer = torch.optim.Adam(
-            self.online.parameters(), lr=c.learning_rate, eps=c.adam_eps, fused=self._fused()
-        )
+        self._build_networks()
         self.replay = MultiMapReplay(c.buffer_size, c.num_envs, self.pool, c.n_step, c.gamma)
         self.rng = np.random.default_rng(c.seed)
         self.guide = MapwiseGuide(make_planner(c.guide), self.pool) if c.guide_fraction else None
@@ -107,6 +103,16 @@ class GeneralTrainer(Trainer):
         self.last_stats = {"loss": float("nan"), "q": float("nan")}
         self.last_eval: tuple[int, int, ValidationResult] | None = None
         self.last_save = time.perf_counter()
+
+    def _build_networks(self) -> None:
+        """The online and target networks of the config, and their optimiser."""
+        c = self.config
+        self.online = build_network(c).to(self.device)
+        self.target = build_network(c).to(self.device)
+        self.target.load_state_dict(self.online.state_dict())
+        self.optimizer = torch.optim.Adam(
+            self.online.parameters(), lr=c.learning_rate, eps=c.adam_eps, fused=self._fused()
+        )
 
     @property
     def label(self) -> str:
@@ -181,9 +187,26 @@ class GeneralTrainer(Trainer):
         if not path.exists():
             return False
         state = load_checkpoint(path)
+        self._keep_stored_home_input(state)
         check_general_resumable(path, state, self.config, self.pool)
         self.load_state_dict(state)
         return True
+
+    def _keep_stored_home_input(self, state: dict) -> None:
+        """A run without the moves home input (from before the option, or ``home_input=False``)
+        resumes without it, although new runs default to it: its weights have no place for
+        it. Only that way round — dropping the input of a run that has it is a changed setting,
+        which :func:`check_general_resumable` refuses."""
+        if not self.config.home_input:
+            return
+        try:
+            stored = GeneralTrainConfig.from_dict(state["config"])
+        except (KeyError, TypeError, ValueError):
+            return  # check_general_resumable says what is wrong with it
+        if not stored.home_input:
+            print("resuming without the moves home input, as the run was trained")
+            self.config = replace(self.config, home_input=False)
+            self._build_networks()
 
 
 def check_general_resumable(

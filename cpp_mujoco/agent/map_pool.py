@@ -15,10 +15,11 @@ network); coverage is stored as packed bits of that padded layout (:meth:`MapPoo
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from cpp_mujoco.agent.home_input import home_field
 from cpp_mujoco.agent.network import NFZ_CHANNEL
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.map_generator import generate_from_seed
@@ -40,6 +41,9 @@ class MapPool:
     side: int
     configs: list[GridConfig]
     layers: np.ndarray
+    # each map's moves home per padded cell, filled on first use (:meth:`moves_home`)
+    _home: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
+    _home_done: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def generate(cls, sizes: tuple[int, ...], per_size: int, first_seed: int) -> MapPool:
@@ -84,6 +88,20 @@ class MapPool:
             "side": self.side,
             "digest": self.digest,
         }
+
+    def moves_home(self, map_index: np.ndarray, position: np.ndarray) -> np.ndarray:
+        """(b,) int32: fewest moves from each stored state's cell (``position``, flat padded
+        cell) to a landing cell of its map (``map_index``). A map's field is
+        :func:`~cpp_mujoco.agent.home_input.home_field` of its padded layers, computed the first
+        time a state of it is asked for (1 ms; the pool's 1,024 maps never all at start)."""
+        if self._home is None:
+            self._home = np.zeros((len(self), self.side * self.side), dtype=np.int32)
+            self._home_done = np.zeros(len(self), dtype=bool)
+        map_index = np.asarray(map_index).reshape(-1)
+        for m in np.unique(map_index[~self._home_done[map_index]]):  # maps, not cells
+            self._home[m] = home_field(self.layers[m])
+            self._home_done[m] = True
+        return self._home[map_index, np.asarray(position).reshape(-1)]
 
     def grids(self, map_index: np.ndarray, coverage_bits: np.ndarray, position: np.ndarray):
         """(b,5,side,side) float32 network input of stored states: the map's layers, the

@@ -52,9 +52,12 @@ class MultiMapReplay(ReplayBuffer):
         self.map_index[t] = np.asarray(obs["map_index"]).reshape(n)
         self.coverage[t] = np.packbits(np.asarray(obs["coverage"]).reshape(n, -1) != 0, axis=-1)
 
-    def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        grid = self.pool.grids(self.map_index[t, e], self.coverage[t, e], self.position[t, e])
-        return grid, self.budget[t, e][:, None], self.wind[t, e]
+    def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, ...]:
+        """As :meth:`ReplayBuffer._state`, each row on its own map (moves home by map index)."""
+        index, position = self.map_index[t, e], self.position[t, e]
+        grid = self.pool.grids(index, self.coverage[t, e], position)
+        home = self.pool.moves_home(index, position)
+        return grid, self.budget[t, e][:, None], self.wind[t, e], home
 
     ARRAYS = ("map_index", "coverage", "position", "budget", "wind", "action", "reward",
               "terminated")  # fmt: skip
@@ -95,9 +98,11 @@ class PooledDemonstrations:
     def __len__(self) -> int:
         return self.action.size
 
-    def _states(self, i: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        grid = self.pool.grids(self.map_index[i], self.coverage[i], self.position[i])
-        return grid, self.budget[i][:, None], self.wind[i]
+    def _states(self, i: np.ndarray) -> tuple[np.ndarray, ...]:
+        index, position = self.map_index[i], self.position[i]
+        grid = self.pool.grids(index, self.coverage[i], position)
+        home = self.pool.moves_home(index, position)
+        return grid, self.budget[i][:, None], self.wind[i], home
 
     def sample(self, batch_size: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """Uniformly drawn transitions in :meth:`ReplayBuffer.transitions`' layout."""

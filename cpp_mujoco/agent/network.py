@@ -9,6 +9,12 @@ a linear output of 5 Q-values. For a 16×16 map: 1,190,389 trainable parameters.
 A wind-robust agent (``wind_inputs=True``) also reads the observed steady wind beside the budget:
 its east and north components and its speed, times :data:`WIND_GAIN` — three more inputs to the
 first dense layer.
+
+A general network (:mod:`~cpp_mujoco.agent.general_network`) may also read the moves home
+(``home_input``, :mod:`~cpp_mujoco.agent.home_input`): the fewest moves from the UAV's cell to a
+landing cell, scaled as the budget, last among the scalars. :func:`scalar_inputs` and
+:func:`observation_to_tensors` are the one implementation every caller shares (policy, training
+collection, replay minibatches).
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from cpp_mujoco.agent.home_input import moves_home
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 
 IN_CHANNELS = 5  # landing, target, nfz, coverage, position
@@ -42,6 +49,8 @@ def dense_head(width_in: int, hidden: int, num_hidden: int) -> nn.Sequential:
 class QNetwork(nn.Module):
     """Q(s, ·) for an H×W map. ``forward(grid, scalars)``: grid (B,5,H,W) float, scalars (B,1)
     the scaled budget, or (B,4) budget and wind with ``wind_inputs`` (:func:`scalar_inputs`)."""
+
+    home_input = False  # the paper's network reads no moves home (a general network may)
 
     def __init__(
         self,
@@ -114,18 +123,21 @@ def count_parameters(module: nn.Module) -> int:
     return sum(p.numel() for p in module.parameters() if p.requires_grad)
 
 
-def scalar_inputs(budget, wind, budget_scale: float, wind_inputs: bool) -> np.ndarray:
-    """The network's scalar inputs (N, 1 or 4) float32: budget / ``budget_scale`` (a fixed
-    preprocessing stored with the weights), then, for a wind network, the wind's east and north
-    components and its speed, × WIND_GAIN."""
-    budget = np.asarray(budget, dtype=np.float32).reshape(-1, 1) / np.float32(budget_scale)
-    if not wind_inputs:
-        return budget
-    wind = np.asarray(wind, dtype=np.float32).reshape(-1, 2)
-    speed = np.sqrt((wind**2).sum(axis=1, keepdims=True))
-    return np.concatenate([budget, wind, speed], axis=1) * np.array(
-        [1.0, WIND_GAIN, WIND_GAIN, WIND_GAIN], dtype=np.float32
-    )
+def scalar_inputs(budget, wind, budget_scale: float, wind_inputs: bool, home=None) -> np.ndarray:
+    """The network's scalar inputs (N, 1–5) float32: budget / ``budget_scale`` (a fixed
+    preprocessing stored with the weights); for a wind network the wind's east and north
+    components and its speed, × WIND_GAIN; then, if ``home`` (the moves home, (N,)) is given,
+    home / ``budget_scale`` — scaled as the budget, so "budget − moves home" is one difference."""
+    scale = np.float32(budget_scale)
+    budget = np.asarray(budget, dtype=np.float32).reshape(-1, 1) / scale
+    parts = [budget]
+    if wind_inputs:
+        wind = np.asarray(wind, dtype=np.float32).reshape(-1, 2)
+        speed = np.sqrt((wind**2).sum(axis=1, keepdims=True))
+        parts += [wind * np.float32(WIND_GAIN), speed * np.float32(WIND_GAIN)]
+    if home is not None:
+        parts.append(np.asarray(home, dtype=np.float32).reshape(-1, 1) / scale)
+    return np.concatenate(parts, axis=1) if len(parts) > 1 else budget
 
 
 def observation_to_tensors(
@@ -133,9 +145,12 @@ def observation_to_tensors(
     budget_scale: float,
     device: torch.device | str = "cpu",
     wind_inputs: bool = False,
+    home_input: bool = False,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """A batched observation dict (leading dim N) → (grid (N,5,H,W), scalars) float tensors
-    (:func:`scalar_inputs`); an observation without ``wind`` counts as calm air."""
+    """A batched observation dict (leading dim N; ``map`` (3,H,W) shared or (N,3,H,W) per row)
+    → (grid (N,5,H,W), scalars) float tensors (:func:`scalar_inputs`); an observation without
+    ``wind`` counts as calm air. ``home_input``: the moves home from the map
+    (:func:`~cpp_mujoco.agent.home_input.moves_home`, cached per map)."""
     coverage = np.asarray(obs["coverage"])
     n = coverage.shape[0]
     maps = np.broadcast_to(np.asarray(obs["map"]), (n, 3, *coverage.shape[1:]))
@@ -143,5 +158,7 @@ def observation_to_tensors(
         [maps, coverage[:, None], np.asarray(obs["position"])[:, None]], axis=1, dtype=np.float32
     )
     wind = obs.get("wind", np.zeros((n, 2), dtype=np.float32)) if wind_inputs else None
-    scalars = scalar_inputs(np.reshape(obs["budget"], (n, 1)), wind, budget_scale, wind_inputs)
+    home = moves_home(obs["map"], obs["position"]) if home_input else None
+    budget = np.reshape(obs["budget"], (n, 1))
+    scalars = scalar_inputs(budget, wind, budget_scale, wind_inputs, home)
     return torch.from_numpy(grid).to(device), torch.from_numpy(scalars).to(device)

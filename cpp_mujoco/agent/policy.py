@@ -59,8 +59,9 @@ class GreedyAgent:
         parts = []
         for lo in range(0, max(n, 1), step):
             part = {k: _rows(k, v, lo, lo + step) for k, v in obs.items()}
+            net = self.network
             grid, scalars = observation_to_tensors(
-                part, self.budget_scale, self.device, self.network.wind_inputs
+                part, self.budget_scale, self.device, net.wind_inputs, net.home_input
             )
             parts.append(self.network(grid, scalars).cpu().numpy())
         return np.concatenate(parts)

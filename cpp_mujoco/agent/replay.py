@@ -2,7 +2,8 @@
 sampling time.
 
 Row t holds, for each environment, the observation s_t (coverage, position, budget — the map is
-fixed and stored once), the action, the reward and whether the step terminated. The environments
+fixed and stored once, with its moves home per cell, :func:`~cpp_mujoco.agent.home_input.
+home_field`), the action, the reward and whether the step terminated. The environments
 auto-reset in the same step (gymnasium ``SAME_STEP``), so when step t did not terminate, row t+1
 holds s_{t+1}; a terminated step needs no next state (Y = r). The n-step window starting at row t
 stops at the first termination; the newest ``n_step`` rows are not sampled until the rows after
@@ -14,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from cpp_mujoco.agent.home_input import home_field
+
 
 class ReplayBuffer:
     def __init__(
@@ -24,6 +27,7 @@ class ReplayBuffer:
         self.capacity = self.rows * num_envs
         self.n_step, self.gamma = n_step, gamma
         self.map_layers = np.asarray(map_layers, dtype=np.float32)  # (3, H, W)
+        self.home = home_field(self.map_layers)  # (H·W,) moves home from each cell
         h, w = self.map_layers.shape[1:]
         self.height, self.width = h, w
         r, n = self.rows, num_envs
@@ -101,8 +105,9 @@ class ReplayBuffer:
             "discount": np.where(alive, self.gamma**steps, 0.0).astype(np.float32),
         }
 
-    def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(grid (b,5,H,W), budget (b,1), wind (b,2)) of rows ``t`` of envs ``e``."""
+    def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(grid (b,5,H,W), budget (b,1), wind (b,2), moves home (b,)) of rows ``t`` of envs
+        ``e``: what :func:`~cpp_mujoco.agent.network.scalar_inputs` reads besides the grid."""
         b = t.size
         hw = self.height * self.width
         grid = np.empty((b, 5, self.height, self.width), dtype=np.float32)
@@ -111,7 +116,8 @@ class ReplayBuffer:
         pos = np.zeros((b, hw), dtype=np.float32)
         pos[np.arange(b), self.position[t, e]] = 1.0
         grid[:, 4] = pos.reshape(b, self.height, self.width)
-        return grid, self.budget[t, e][:, None], self.wind[t, e]
+        home = self.home[self.position[t, e]]
+        return grid, self.budget[t, e][:, None], self.wind[t, e], home
 
     # ------------------------------------------------------------------ checkpointing
     def state_dict(self) -> dict:

@@ -35,11 +35,7 @@ from cpp_mujoco.agent.checkpoint import (
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.ddqn import ddqn_update, softmax_actions
 from cpp_mujoco.agent.demonstrations import record_demonstrations
-from cpp_mujoco.agent.network import (
-    QNetwork,
-    observation_to_tensors,
-    scalar_inputs,
-)
+from cpp_mujoco.agent.network import QNetwork, observation_to_tensors, scalar_inputs
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.replay import ReplayBuffer, concatenate_batches
 from cpp_mujoco.agent.run_folder import StopSignals, TrainingInterrupted
@@ -114,9 +110,9 @@ class Trainer:
 
     # ------------------------------------------------------------------ collection and learning
     def collect(self) -> None:
-        c = self.config
+        c, net = self.config, self.online
         grid, scalars = observation_to_tensors(
-            self.obs, c.input_budget_scale, self.device, self.online.wind_inputs
+            self.obs, c.input_budget_scale, self.device, net.wind_inputs, net.home_input
         )
         with torch.no_grad():
             q = self.online(grid, scalars).cpu()
@@ -162,14 +158,16 @@ class Trainer:
             demo[-n_demo:] = True
         d = self.device
         scale, wind = c.input_budget_scale, self.online.wind_inputs
-        (g, b, wd), (ng, nb, nwd) = s["obs"], s["next_obs"]
-        return {  # "budget" holds the network's scalar inputs: the budget, and a wind net's wind
+        (g, b, wd, h), (ng, nb, nwd, nh) = s["obs"], s["next_obs"]
+        if not self.online.home_input:
+            h = nh = None
+        return {  # "budget" holds the network's scalar inputs: the budget (, wind, moves home)
             "grid": torch.from_numpy(g).to(d),
-            "budget": torch.from_numpy(scalar_inputs(b, wd, scale, wind)).to(d),
+            "budget": torch.from_numpy(scalar_inputs(b, wd, scale, wind, h)).to(d),
             "action": torch.from_numpy(s["action"]).to(d),
             "return": torch.from_numpy(s["return"]).to(d),
             "next_grid": torch.from_numpy(ng).to(d),
-            "next_budget": torch.from_numpy(scalar_inputs(nb, nwd, scale, wind)).to(d),
+            "next_budget": torch.from_numpy(scalar_inputs(nb, nwd, scale, wind, nh)).to(d),
             "discount": torch.from_numpy(s["discount"]).to(d),
             "demo": torch.from_numpy(demo).to(d),
         }
