@@ -62,8 +62,8 @@ def moves_home(maps: np.ndarray, position: np.ndarray) -> np.ndarray:
     """(N,) int32: each state's moves home. ``maps``: one (3,H,W) map shared by the batch or
     (N,3,H,W), one per row; ``position``: the (N,H,W) one-hot UAV cells of an observation.
 
-    One cached field per distinct map, then a gather: the per-row work is a dictionary lookup
-    of the row's map, never a loop over cells."""
+    One cached field per distinct map (:func:`_field`'s cache), then a gather: the per-row
+    work is a cache lookup of the row's map, never a loop over cells."""
     position = np.asarray(position)
     n = position.shape[0]
     cell = position.reshape(n, int(np.prod(position.shape[1:]))).argmax(axis=1)
@@ -75,12 +75,8 @@ def moves_home(maps: np.ndarray, position: np.ndarray) -> np.ndarray:
     if maps.shape[0] != n:
         raise ValueError(f"{maps.shape[0]} maps for {n} positions")
     cells = np.ascontiguousarray(maps != 0)
-    fields: dict[bytes, np.ndarray] = {}
-    out = np.empty(n, dtype=np.int32)
-    for i, layers in enumerate(cells):  # rows, not cells: a lookup each
-        key = layers.tobytes()
-        field = fields.get(key)
-        if field is None:
-            field = fields[key] = _field(key, layers.shape)
-        out[i] = field[cell[i]]
-    return out
+    shape = cells.shape[1:]
+    return np.array(
+        [_field(layers.tobytes(), shape)[c] for layers, c in zip(cells, cell, strict=True)],
+        dtype=np.int32,
+    )

@@ -41,9 +41,8 @@ class MapPool:
     side: int
     configs: list[GridConfig]
     layers: np.ndarray
-    # each map's moves home per padded cell, filled on first use (:meth:`moves_home`)
+    # each map's moves home per padded cell, filled on first use (:meth:`moves_home`; −1: not yet)
     _home: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
-    _home_done: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def generate(cls, sizes: tuple[int, ...], per_size: int, first_seed: int) -> MapPool:
@@ -95,12 +94,10 @@ class MapPool:
         :func:`~cpp_mujoco.agent.home_input.home_field` of its padded layers, computed the first
         time a state of it is asked for (1 ms; the pool's 1,024 maps never all at start)."""
         if self._home is None:
-            self._home = np.zeros((len(self), self.side * self.side), dtype=np.int32)
-            self._home_done = np.zeros(len(self), dtype=bool)
+            self._home = np.full((len(self), self.side * self.side), -1, dtype=np.int32)
         map_index = np.asarray(map_index).reshape(-1)
-        for m in np.unique(map_index[~self._home_done[map_index]]):  # maps, not cells
+        for m in np.unique(map_index[self._home[map_index, 0] < 0]):  # maps, not cells
             self._home[m] = home_field(self.layers[m])
-            self._home_done[m] = True
         return self._home[map_index, np.asarray(position).reshape(-1)]
 
     def grids(self, map_index: np.ndarray, coverage_bits: np.ndarray, position: np.ndarray):
