@@ -73,6 +73,17 @@ def test_each_direction_flies_every_episode_from_all_four_and_says_so():
         concatenate([result, result], repeated=True)
 
 
+def test_a_result_flown_with_other_gust_histories_says_which():
+    from cpp_mujoco.review.report_conditions import weather_summary
+
+    rated = {"wind_speed": 9.0, "turbulence": "moderate"}
+    assert weather_summary({"backend": "mujoco", "physics_config": rated}) == (
+        "9 m/s + moderate turbulence"
+    )
+    other = {"backend": "mujoco", "physics_config": {**rated, "gust_seed": 1}}
+    assert weather_summary(other) == "9 m/s + moderate turbulence, gust seed 1"
+
+
 def test_calm_air_is_one_run_without_directions():
     result = evaluate_in_winds(SafeGreedyPlanner(), SMALL, 0.0, budgets=[5, 6], workers=1)
     assert weather(result) == "calm" and len(result.conditions["parts"]) == 1

@@ -48,7 +48,7 @@ def budgets_summary(budgets: Any) -> str:
 
 def weather_summary(conditions: dict) -> str:
     """The weather of a result as the tables' weather cells show it (``9 m/s N/E/S/W + moderate
-    turbulence``, ``calm``), from its
+    turbulence``, ``calm``; a gust seed other than 0 is named), from its
     ``physics_config``, ``env_kwargs`` or flat keys, and the directions of its parts."""
     env = {
         **{k: v for k, v in conditions.items() if not isinstance(v, dict | list)},
@@ -74,6 +74,8 @@ def weather_summary(conditions: dict) -> str:
         text += f" + {turbulence} turbulence"
     if env.get("gust_std"):
         text += f" + gusts σ {float(env['gust_std']):g}"
+    if env.get("gust_seed"):  # other gust histories of the same episodes: not the reported ones
+        text += f", gust seed {int(env['gust_seed'])}"
     return text
 
 
