@@ -7,55 +7,19 @@ import sys
 import numpy as np
 import pytest
 
-from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
-from cpp_mujoco.maps import GridMap
+from cpp_mujoco.grid.actions import EAST, NORTH, SOUTH, WEST
 from cpp_mujoco.physics import compiled_tick
 from cpp_mujoco.physics.battery import CUTOFF
 from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
-
-# an open 5×6 map: landing strip in the middle row, targets around, one no-fly cell
-MAP = GridMap.from_ascii(["TTTTTT", "T..N.T", "TLLLLT", "T....T", "TTTTTT"], name="open")
-WIND = {"wind_speed": 9.0, "wind_direction": 270.0, "turbulence": "moderate"}
+from tests.twin_flights import MAP, WIND, fly_twins, wander
 
 
 def _fly_both(kwargs: dict, budgets, actions_of, steps: int = 30, perturb=None) -> list:
-    """The same seeds, budgets and actions through a compiled and a numpy batched env: every
-    observation, reward, flag, info and each drone's whole MuJoCo state row must be the same
-    doubles after every step. ``perturb(state, cols)`` edits both envs' state rows after the
-    reset. Returns each episode's ending (crash reason, "landed", or None: still flying)."""
+    """The same episodes through a compiled and a numpy batched env (:func:`fly_twins`)."""
     pytest.importorskip("numba")
-    n = len(budgets)
-    envs = [MuJoCoVectorEnv(n, MAP, tick=tick, **kwargs) for tick in ("compiled", "numpy")]
+    envs = [MuJoCoVectorEnv(len(budgets), MAP, tick=t, **kwargs) for t in ("compiled", "numpy")]
     assert [e.flight.tick for e in envs] == ["compiled", "numpy"]
-    for env in envs:
-        env.reset(seed=[100 + i for i in range(n)], options={"budget": np.array(budgets)})
-        if perturb is not None:
-            perturb(env.flight.state, env.flight.cols)
-    ended: list = [None] * n
-    for step in range(steps):
-        actions = actions_of(step, n)
-        (obs, rew, term, trunc, info), (o2, r2, t2, tr2, i2) = (e.step(actions) for e in envs)
-        where = f"step {step}"
-        for key in obs:
-            np.testing.assert_array_equal(obs[key], o2[key], err_msg=f"{where}: {key}")
-        for a, b in ((rew, r2), (term, t2), (trunc, tr2)):
-            np.testing.assert_array_equal(a, b, err_msg=where)
-        for key in info:
-            np.testing.assert_array_equal(info[key], i2[key], err_msg=f"{where}: {key}")
-        np.testing.assert_array_equal(envs[0].flight.state, envs[1].flight.state, err_msg=where)
-        for i in np.flatnonzero(term & np.equal(ended, None)).tolist():
-            ended[i] = "landed" if info["landed"][i] else info["crash_reason"][i]
-        if all(e is not None for e in ended):
-            break
-    for env in envs:
-        env.close()
-    return ended
-
-
-def _wander(seed: int, land: float):
-    """Random moves (hovers where the map rejects one), a landing with probability ``land``."""
-    rng = np.random.default_rng(seed)
-    return lambda step, n: np.where(rng.random(n) < land, LAND, rng.integers(0, 4, size=n))
+    return fly_twins(envs, budgets, actions_of, steps, perturb)
 
 
 @pytest.mark.parametrize(
@@ -68,7 +32,7 @@ def test_compiled_and_numpy_ticks_fly_the_same_episodes(kwargs):
     power, per-drone gusts), small budgets running out (emergency landings): the same cells,
     budgets, energies, positions and failures to the last bit."""
     with np.errstate(all="ignore"):
-        ended = _fly_both(kwargs, [3, 5, 8, 12, 4, 20], _wander(7, 0.1))
+        ended = _fly_both(kwargs, [3, 5, 8, 12, 4, 20], wander(7, 0.1))
     assert "landed" in ended
 
 
@@ -96,7 +60,7 @@ def test_an_airspeed_off_the_turbulence_table_flies_the_numpy_control(monkeypatc
     """A tick with a turbulence time scale the compiled tick has no row for (here: none fits)
     flies the numpy twin's control on the same state arrays: still the same doubles."""
     monkeypatch.setattr(compiled_tick, "_MAX_KEYS", 0)
-    _fly_both(WIND, [5, 8, 12], _wander(3, 0.2), steps=5)
+    _fly_both(WIND, [5, 8, 12], wander(3, 0.2), steps=5)
 
 
 def test_the_tick_switch(monkeypatch):

@@ -6,14 +6,12 @@ work (references, controller, energy, battery, wind, drag, failure checks) is do
 drones, as arrays (:mod:`~.batched_control`, :mod:`~.batched_power`) or compiled loops
 (:mod:`~.compiled_tick`), and the physics of all drones is one call of
 ``mujoco.batch.Batch.step`` (MuJoCo ≥ 3.17): C loops over the drones on ``threads`` threads
-(the caller's included) without the GIL, no Python call per drone. The batch is *persistent*:
-each drone keeps its own ``MjData`` inside it, and its state row (:attr:`BatchedFlight.state`,
-``mjSTATE_INTEGRATION``) carries the solver's warmstart and the inputs — so every step is the
-``mj_step`` a single flight takes on its own ``MjData``, bit for bit: contacts (touchdown) and
-the camera pose (coverage) are MuJoCo's own, one substep behind the state as after ``mj_step``.
-(``mujoco.rollout`` was the alternative: it steps states through scratch ``MjData`` that start
-each call with a zero warmstart and no contacts, and stops a trajectory at its first warning —
-exact only for drones provably clear of the ground, with a per-drone path beside it.)
+without the GIL. The batch is *persistent*: each drone keeps its own ``MjData`` inside it, and its
+state row (:attr:`BatchedFlight.state`, ``mjSTATE_INTEGRATION``) carries the solver's warmstart
+and the inputs — so every step is the ``mj_step`` a single flight takes, bit for bit: contacts
+(touchdown) and the camera pose (coverage) are MuJoCo's own. (``mujoco.rollout`` steps through
+scratch ``MjData`` with a zero warmstart and stops at a warning: exact only clear of the ground.)
+Drones clear of the ground step on a model without contacts (:mod:`~.airborne`), the same doubles.
 
 A macro-action ends at a different time for each drone; the drones that are done wait (no
 physics) while the others fly, so every drone's flight is the one its single flight would fly.
@@ -26,13 +24,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 from mujoco.batch import Batch
 
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.airborne import AirborneSteps
+from cpp_mujoco.physics.batched_action import FAILURES, HOVER, LAND, MOVE, MacroActions
 from cpp_mujoco.physics.batched_camera import BatchedCamera
 from cpp_mujoco.physics.batched_control import (
     BatchedController,
@@ -46,30 +45,6 @@ from cpp_mujoco.physics.battery import CUTOFF
 from cpp_mujoco.physics.compiled_tick import choose_tick
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import EMERGENCY_LANDING, Flight, ground_contact
-
-MOVE, HOVER, LAND = 0, 1, 2  # the three kinds of macro-action
-# the failed state checks of a tick, in the single flight's order
-FAILURES = ("numerical divergence (NaN or unstable acceleration)", "left the arena",
-            "flipped over", "diverged from the reference")  # fmt: skip
-
-
-@dataclass
-class _Action:
-    """Per drone, the macro-action being flown (what :meth:`Flight._fly` keeps in locals)."""
-
-    res: dict  # the result fields, (n,) arrays
-    flying: np.ndarray  # still in the action
-    t: np.ndarray  # s since the action (or its emergency landing, or the fall) began
-    t0: np.ndarray  # simulated time at the action's start
-    goal: np.ndarray  # (n, 3)
-    nominal: np.ndarray
-    limit: np.ndarray
-    arrive: np.ndarray  # a move: done on arrival
-    land: np.ndarray  # landing (asked for, or the battery failsafe's)
-    begun_landing: np.ndarray  # a landing asked for: it finishes on the reserve
-    emergency: np.ndarray  # why the failsafe is landing the drone (object: str or None)
-    worst2: np.ndarray  # the largest squared horizontal tracking error
-
 
 _ROW = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # the batch's state rows
 
@@ -85,7 +60,8 @@ class BatchedFlight:
     caller's included); ``tick``: the control tick's arithmetic, ``"numpy"``, ``"compiled"``
     (numba, the ``fast`` extra) or ``"auto"`` (compiled where numba imports; None reads
     ``CPP_MUJOCO_TICK``, default auto), :attr:`tick` the one chosen — both fly the same
-    doubles. The batch steps a copy of ``model``, made here."""
+    doubles; ``air_steps``: drones clear of the ground step without contacts (the same doubles,
+    cheaper). The batch steps a copy of ``model``, made here."""
 
     def __init__(
         self,
@@ -96,6 +72,7 @@ class BatchedFlight:
         coverage: np.ndarray,
         threads: int = 1,
         tick: str | None = None,
+        air_steps: bool = True,
     ):
         # the single flight holds every constant (parameters, tolerances, geometry, the scalar
         # models whose twins fly here): one place to derive them
@@ -123,7 +100,8 @@ class BatchedFlight:
         self.wind = BatchedWind(one.wind, n)
         self.refs = References(n, one.controller.lead, config.land_duration, config.land_speed)
         S = mujoco.mjtState
-        jnt = int(model.body_jntadr[model.body_parentid[one.params.body_id]])
+        frame = int(model.body_parentid[one.params.body_id])  # the body of the free joint
+        jnt = int(model.body_jntadr[frame])
         q0 = _column(model, S.mjSTATE_QPOS) + int(model.jnt_qposadr[jnt])
         v0 = _column(model, S.mjSTATE_QVEL) + int(model.jnt_dofadr[jnt])
         a0 = _column(model, S.mjSTATE_ACT)
@@ -132,6 +110,8 @@ class BatchedFlight:
         self.ctrl_cols = slice(u0, u0 + model.nu)
         f0 = _column(model, S.mjSTATE_XFRC_APPLIED) + 6 * one.params.body_id
         self.force_cols = slice(f0, f0 + 3)  # the drag force on the body
+        pos, vel = self.state[:, q0 : q0 + 3], self.state[:, v0 : v0 + 6]
+        self.air = AirborneSteps(sims, model, frame, pos, vel) if air_steps else None
         self.capacity = np.full(n, math.inf)
         self.energy_used = np.zeros(n)
         self.motors_on = np.ones(n, dtype=bool)
@@ -186,6 +166,8 @@ class BatchedFlight:
         their rows: one ``Batch.step``, split over the threads in C. A diverging drone (a NaN
         or huge acceleration) is reset by MuJoCo, which counts it in the drone's warnings: the
         next tick's failure check reads that count, as the single flight does."""
+        if self.air is not None:
+            self.air.before_step(drones, nstep)
         self.sims.step(drones, nstep)
 
     def _ground_contact(self, i: int) -> bool | None:
@@ -244,7 +226,7 @@ class BatchedFlight:
         arrive[idx] = kind == MOVE
         land = np.zeros(n, dtype=bool)
         land[idx] = landing
-        action = _Action(
+        action = MacroActions(
             res, active.copy(), np.zeros(n), t0, goal, nominal, limit, arrive, land,
             land.copy(), np.full(n, None, dtype=object), self.max_track_error**2,
         )  # fmt: skip
@@ -257,7 +239,7 @@ class BatchedFlight:
         res["tracking_error"][idx] = np.sqrt(((p - goal[idx]) ** 2).sum(1))
         return res
 
-    def _loop(self, a: _Action) -> None:
+    def _loop(self, a: MacroActions) -> None:
         """The tick loop of :meth:`Flight._fly` over the drones still flying: one control tick
         for all of them (:meth:`_tick`), then their physics steps (one C call)."""
         k, dt = self.k, self.dt
@@ -268,7 +250,7 @@ class BatchedFlight:
                 self._step(go, k)
                 a.t[go] += dt
 
-    def _tick(self, i: np.ndarray, a: _Action) -> np.ndarray:
+    def _tick(self, i: np.ndarray, a: MacroActions) -> np.ndarray:
         """One control tick of drones ``i``: failure checks, camera, done checks, then the
         inputs of those that fly on (returned: they step next)."""
         res, t, t0, goal, worst2 = a.res, a.t, a.t0, a.goal, a.worst2
@@ -329,7 +311,7 @@ class BatchedFlight:
                       v_ref[keep], a_ref[keep], a)  # fmt: skip
         return go
 
-    def _landing_done(self, d: int, a: _Action) -> bool:
+    def _landing_done(self, d: int, a: MacroActions) -> bool:
         """Whether landing or falling drone ``d``'s action ends (contact, time limit)."""
         res, t = a.res, a.t[d]
         touch = self._ground_contact(d)
@@ -352,7 +334,7 @@ class BatchedFlight:
             return False
         return True
 
-    def _failsafe(self, d: np.ndarray, p: np.ndarray, a: _Action) -> None:
+    def _failsafe(self, d: np.ndarray, p: np.ndarray, a: MacroActions) -> None:
         """The battery failsafe: drones ``d`` at ``p`` (m, 3) land where they are, on the
         reserve (the cut-off's or the budget's)."""
         c, one = self.config, self.one
@@ -362,7 +344,7 @@ class BatchedFlight:
         self.refs.set(d, p, end, np.full(len(d), c.land_duration), True)
         a.goal[d] = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z)], 1)
 
-    def _control(self, i, pos, vel, R, omega, act, p_ref, v_ref, a_ref, a: _Action) -> None:
+    def _control(self, i, pos, vel, R, omega, act, p_ref, v_ref, a_ref, a: MacroActions) -> None:
         """Wind, control, energy, battery and drag of one tick: the drones' inputs (ctrl and drag
         force, written into their state rows for the next step)."""
         dt, t, emergency = self.dt, a.t, a.emergency

@@ -21,11 +21,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cpp_mujoco.physics.batched_action import FAILURES, MacroActions
 from cpp_mujoco.physics.battery import _A, _B, _C, OVERLOAD
 from cpp_mujoco.physics.controller import GRAVITY
 
 if TYPE_CHECKING:
-    from cpp_mujoco.physics.batched_flight import BatchedFlight, _Action
+    from cpp_mujoco.physics.batched_flight import BatchedFlight
 
 TICKS = ("auto", "numpy", "compiled")
 TICK_VARIABLE = "CPP_MUJOCO_TICK"  # the tick when none is given (default auto)
@@ -85,7 +86,6 @@ class CompiledTick:
 
     def __init__(self, flight: BatchedFlight):
         from cpp_mujoco.physics import compiled_control, compiled_power
-        from cpp_mujoco.physics.batched_flight import FAILURES
 
         self.k, self.p, self.f, self.failures = compiled_control, compiled_power, flight, FAILURES
         one, c = flight.one, flight.config
@@ -116,7 +116,7 @@ class CompiledTick:
         self.table, self.filled = np.zeros((0, 16)), np.zeros(0, dtype=bool)
         self.A = np.ascontiguousarray(flight.controller.A_inv)
 
-    def __call__(self, i: np.ndarray, a: _Action) -> np.ndarray:
+    def __call__(self, i: np.ndarray, a: MacroActions) -> np.ndarray:
         K, f = self.k, self.f
         m, res, refs = i.size, a.res, f.refs
         code = self.code[:m]
@@ -147,7 +147,7 @@ class CompiledTick:
             self._control(i, ids, code, a)
         return ids
 
-    def _control(self, i: np.ndarray, go: np.ndarray, code: np.ndarray, a: _Action) -> None:
+    def _control(self, i: np.ndarray, go: np.ndarray, code: np.ndarray, a: MacroActions) -> None:
         """The inputs of the drones ``go`` (those of ``i`` whose ``code`` is FLY)."""
         K, f = self.k, self.f
         ctl, w, b = f.controller, f.wind, f.battery
@@ -198,7 +198,9 @@ class CompiledTick:
                 self.filled[row] = True
         return True
 
-    def _numpy_control(self, i: np.ndarray, go: np.ndarray, code: np.ndarray, a: _Action) -> None:
+    def _numpy_control(
+        self, i: np.ndarray, go: np.ndarray, code: np.ndarray, a: MacroActions
+    ) -> None:
         """The numpy twin's inputs for this tick (the same state arrays): what flies an
         airspeed the table does not hold."""
         f = self.f

@@ -1,0 +1,32 @@
+"""What a batch of drones is flying: the kinds of macro-action, per drone the action's running
+state (what :meth:`Flight._fly` keeps in locals), and the failed state checks of a tick — shared
+by the numpy tick (:mod:`~.batched_flight`) and the compiled one (:mod:`~.compiled_tick`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MOVE, HOVER, LAND = 0, 1, 2  # the three kinds of macro-action
+# the failed state checks of a tick, in the single flight's order
+FAILURES = ("numerical divergence (NaN or unstable acceleration)", "left the arena",
+            "flipped over", "diverged from the reference")  # fmt: skip
+
+
+@dataclass
+class MacroActions:
+    """Per drone, the macro-action being flown (what :meth:`Flight._fly` keeps in locals)."""
+
+    res: dict  # the result fields, (n,) arrays
+    flying: np.ndarray  # still in the action
+    t: np.ndarray  # s since the action (or its emergency landing, or the fall) began
+    t0: np.ndarray  # simulated time at the action's start
+    goal: np.ndarray  # (n, 3)
+    nominal: np.ndarray
+    limit: np.ndarray
+    arrive: np.ndarray  # a move: done on arrival
+    land: np.ndarray  # landing (asked for, or the battery failsafe's)
+    begun_landing: np.ndarray  # a landing asked for: it finishes on the reserve
+    emergency: np.ndarray  # why the failsafe is landing the drone (object: str or None)
+    worst2: np.ndarray  # the largest squared horizontal tracking error
