@@ -213,7 +213,7 @@ def batch_stepping_rate(
     return calls * drones * 5 / (time.perf_counter() - start)
 
 
-def benchmark_protocol(map: str = "A", step: int = 1, ray_step: int = 5) -> dict:  # noqa: A002
+def benchmark_protocol(map: str = "A", step: int = 1, ray_step: int = 1) -> dict:  # noqa: A002
     """Wall time of the MuJoCo protocol of the bundled agent on ``map`` (budgets every ``step``)
     over 2 local worker processes, and on Ray with 1 and 2 CPUs (budgets every ``ray_step``; each
     runtime started before the clock starts). The Ray runs must agree episode by episode.
