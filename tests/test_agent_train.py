@@ -147,3 +147,30 @@ def test_best_pt_keeps_the_evaluation_best_by_return_or_by_landing(
     assert saved == kept
     with pytest.raises(ValueError, match="best_by"):
         TrainConfig(best_by="coverage")
+
+
+def test_the_crash_reward_is_what_a_training_crash_pays(tmp_path):
+    """``crash_reward`` sets the training MDP's crash reward (grid and physics fine-tuning): the
+    same episodes pay the same rewards but for the crash; nonsense is refused."""
+    from cpp_mujoco.grid.actions import NORTH
+
+    rewards = []
+    for crash in (-150.0, -600.0):
+        cfg = TrainConfig(map="A", min_budget=2, max_budget=2, num_envs=4, crash_reward=crash,
+                          threads=1, demo_fraction=0.0, guide_fraction=0.0)  # fmt: skip
+        env = Trainer(cfg, tmp_path / str(crash)).env
+        env.reset(seed=0)
+        env.step(np.full(4, NORTH))
+        _, reward, terminated, _, _ = env.step(np.full(4, NORTH))  # spent, unlanded: a crash
+        assert terminated.all()
+        rewards.append(reward)
+    np.testing.assert_allclose(rewards[1] - rewards[0], -450.0)
+    physics = dataclasses.replace(cfg, backend="mujoco", num_envs=5, physics_wind_speed=0.0)
+    from cpp_mujoco.maps import load_map
+    from cpp_mujoco.physics.mixed_wind_vector_env import MixedWindVectorEnv
+
+    flown = MixedWindVectorEnv.for_training(physics, load_map("A"))
+    assert [env.mdp.config.rewards.crash for env in flown.envs] == [-600.0]
+    for bad in (float("nan"), 10.0):
+        with pytest.raises(ValueError, match="crash_reward"):
+            TrainConfig(crash_reward=bad)

@@ -39,6 +39,8 @@ _HELP = {
     "wind_max_speed": "train in the grid's wind option, winds up to this m/s (0 = the paper)",
     "wind_calm_fraction": "share of calm-air training episodes with the wind option",
     "wind_gust_scale": "wind option: each episode's gust spread × a factor uniform in 1..this",
+    "crash_reward": "the MDP's crash reward while training (the paper's: −150); evaluation"
+    " reports landing and coverage, which do not depend on it",
     "init_from": "start from this agent's weights (bundled name or file; empty = random)",
     "backend": "where the training episodes are flown: grid (the MDP) or mujoco (fine-tuning in"
     " physics, several weathers at once; the evaluation stays on the grid)",

@@ -8,6 +8,7 @@ choice are in ``docs/agent.md``. ``TrainConfig.paper()`` gives the paper's sched
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields
 
 from cpp_mujoco.grid.spaces import MAX_WIND
@@ -33,6 +34,11 @@ class TrainConfig:
     # each wind episode's gust spread is the calibrated one times a factor uniform over
     # 1..wind_gust_scale (GridWind.gust_scale; 1 = the calibrated moderate turbulence only)
     wind_gust_scale: float = 1.0
+    # the MDP's crash reward while training (paper: −150). With γ = 0.95 a crash 11 moves ahead
+    # weighs −85 against +1.2 for a move that shows three new cells, so the greedy policy takes a
+    # ≈ 1 % crash risk for it; a larger penalty buys landings with coverage (docs/agent.md).
+    # Evaluation reports landing and coverage, which do not depend on it
+    crash_reward: float = -150.0
     # start from this agent's weights (bundled name or file; "" = random init). A wind network
     # started from a calm one gets zero weights on its wind inputs: it first acts as that agent
     init_from: str = ""
@@ -116,6 +122,8 @@ class TrainConfig:
             raise ValueError("num_envs and batch_size must be >= 1")
         if self.buffer_size < self.num_envs * (self.n_step + 2):
             raise ValueError(f"buffer_size {self.buffer_size} too small for {self.num_envs} envs")
+        if not (math.isfinite(self.crash_reward) and self.crash_reward <= 0):
+            raise ValueError(f"crash_reward must be a finite number <= 0, got {self.crash_reward}")
         if not 0.0 <= self.demo_fraction < 1.0:
             raise ValueError(f"demo_fraction must be in [0, 1), got {self.demo_fraction}")
         if not 0.0 < self.tau <= 1.0 or not 0.0 <= self.gamma <= 1.0 or self.beta <= 0:
@@ -190,6 +198,16 @@ class TrainConfig:
             calm_fraction=self.wind_calm_fraction,
             gust_scale=(1.0, self.wind_gust_scale),
         )
+
+    @property
+    def grid_config(self):
+        """The grid MDP this config trains in: its budgets, wind option and crash reward."""
+        from cpp_mujoco.grid.mdp import GridConfig, Rewards
+
+        return GridConfig(
+            min_budget=self.min_budget, max_budget=self.max_budget, wind=self.wind,
+            rewards=Rewards(crash=self.crash_reward),
+        )  # fmt: skip
 
     @property
     def input_budget_scale(self) -> float:

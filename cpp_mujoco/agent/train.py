@@ -41,7 +41,6 @@ from cpp_mujoco.agent.replay import ReplayBuffer, concatenate_batches
 from cpp_mujoco.agent.run_folder import StopSignals, TrainingInterrupted
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.evaluate import EvaluationResult, evaluate, protocol_budgets
-from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.review.training_plot import write_training_log
@@ -62,7 +61,7 @@ class Trainer:
         cores = os.cpu_count() or 1
         self.tuner = ThreadTuner((1, cores)) if c.threads == 0 and cores > 1 else None
         self.grid_map = load_map(c.map)
-        self.grid_config = GridConfig(min_budget=c.min_budget, max_budget=c.max_budget, wind=c.wind)
+        self.grid_config = c.grid_config
         if c.backend == "mujoco":  # MuJoCo is imported only then
             from cpp_mujoco.physics.mixed_wind_vector_env import MixedWindVectorEnv
 

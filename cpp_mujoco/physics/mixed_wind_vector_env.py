@@ -155,9 +155,9 @@ class MixedWindVectorEnv(VectorEnv):
     @classmethod
     def for_training(cls, config: Any, grid_map: GridMap) -> MixedWindVectorEnv:
         """The env of a ``backend="mujoco"`` :class:`~cpp_mujoco.agent.config.TrainConfig`: its
-        weathers (``physics_conditions()``), budgets and MuJoCo threads, autoreset in the same
-        step (as the trainer reads it)."""
-        budgets = GridConfig(min_budget=config.min_budget, max_budget=config.max_budget)
+        weathers (``physics_conditions()``), budgets, crash reward and MuJoCo threads, autoreset
+        in the same step (as the trainer reads it)."""
+        budgets = dataclasses.replace(config.grid_config, wind=None)  # physics sets the costs
         return cls(
             config.physics_conditions(), grid_map, budgets, AutoresetMode.SAME_STEP,
             threads=config.physics_threads,
