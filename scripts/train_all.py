@@ -5,8 +5,10 @@
 
 ``--wind`` trains the wind-robust agents in two runs per map (:data:`WIND_STAGES`,
 ``docs/agent.md``): ``OUT/M-stage1`` starts from the map's bundled paper agent and learns in the
-grid's wind option, ``OUT/M`` continues from its final agent; ``--install`` then writes
-``M-wind.pt`` from ``OUT/M/best.pt``.
+grid's wind option, ``OUT/M`` continues from its final agent; on the maps of
+:data:`PHYSICS_UPDATES` a third run, ``OUT/M-physics``, fine-tunes ``OUT/M/best.pt`` in MuJoCo.
+``--install`` then writes ``M-wind.pt`` from the last run: ``best.pt`` of a grid run, ``agent.pt``
+of the physics run (its ``best.pt`` is chosen on the grid, which is not what it was tuned for).
 
 Each map runs ``cpp-mujoco train --map M --seed 0 --out OUT/M --max-minutes MIN`` (through the same
 argparse handler), then evaluates ``best.pt`` on the full protocol; ``--install`` copies it to
@@ -33,18 +35,30 @@ from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
 # in winds of 0..12 m/s (20 % calm), guided by and learning from planners that price moves with
 # the wind; then continue from its final agent with more calm air, a lower learning rate and
 # best.pt chosen by landings
-WIND_STAGES = [
-    ("stage1", [
+WIND_STAGES = [  # (folder suffix, seed offset, options)
+    ("stage1", 0, [
         "--wind-max-speed", "12", "--guide", "safe-greedy-wind",
         "--demo-planner", "beam-search-wind", "--learning-rate", "0.00025",
         "--total-updates", "10000", "--init-from", "{paper}",
     ]),
-    ("", [
+    ("", 1, [
         "--wind-max-speed", "12", "--wind-calm-fraction", "0.35", "--guide", "safe-greedy-wind",
         "--demo-planner", "beam-search-wind", "--learning-rate", "0.00015",
         "--total-updates", "6000", "--best-by", "landing", "--init-from", "{stage1}/agent.pt",
     ]),
 ]  # fmt: skip
+# then, on these maps, the grid agent fine-tuned in MuJoCo (the updates each bundled agent had):
+# a fifth of the 64 slots calm, the rest at the rated wind from N/E/S/W; a small learning rate
+# and the grid demonstrations in every minibatch keep the grid agent (docs/agent.md). It removed
+# the calm-air transfer crashes of A and B; C's grid agent has none to remove
+PHYSICS_UPDATES = {"A": 2000, "B": 3000}
+PHYSICS_STAGE = ("physics", 0, [
+    "--backend", "mujoco", "--init-from", "{stage2}/best.pt", "--wind-max-speed", "12",
+    "--wind-calm-fraction", "0.35", "--physics-wind-speed", "9", "--physics-calm-share", "0.2",
+    "--guide-fraction", "0", "--demo-fraction", "0.25", "--demo-planner", "beam-search-wind",
+    "--learning-rate", "2e-5", "--best-by", "landing", "--num-envs", "64",
+    "--updates-per-step", "2", "--total-updates", "{physics_updates}",
+])  # fmt: skip
 
 
 def _train(cmd: list[str]) -> int:
@@ -88,18 +102,25 @@ def main(argv=None) -> int:
     summary = {}
     minutes = args.minutes if args.minutes is not None else (0.0 if args.wind else 20.0)
     for m in args.maps:
-        out = Path(args.out) / m
         t0 = time.time()
-        runs = [(out, [])]  # (folder, options) of each run of this map; the last one is kept
+        runs = [(Path(args.out) / m, 0, [])]  # (folder, seed offset, options); the last is kept
         if args.wind:
-            stage = {"paper": m, "stage1": str(Path(args.out) / f"{m}-stage1")}
+            stage = {
+                "paper": m,
+                "stage1": str(Path(args.out) / f"{m}-stage1"),
+                "stage2": str(Path(args.out) / m),
+                "physics_updates": PHYSICS_UPDATES.get(m),
+            }
+            stages = WIND_STAGES + ([PHYSICS_STAGE] if m in PHYSICS_UPDATES else [])
             runs = [
-                (Path(args.out) / f"{m}-{suffix}" if suffix else out,
+                (Path(args.out) / (f"{m}-{suffix}" if suffix else m), offset,
                  [o.format(**stage) for o in options])
-                for suffix, options in WIND_STAGES
+                for suffix, offset, options in stages
             ]  # fmt: skip
-        for i, (folder, options) in enumerate(runs):  # run i is seeded seed + i
-            seed = str(args.seed + i)
+        out = runs[-1][0]
+        kept = out / ("agent.pt" if "mujoco" in runs[-1][2] else "best.pt")
+        for folder, offset, options in runs:
+            seed = str(args.seed + offset)
             cmd = ["train", "--map", m, "--seed", seed, "--out", str(folder), *options]
             cmd += ["--max-minutes", str(minutes), "--no-progress", *args.extra]
             if (folder / "checkpoint.pt").exists() and "--overwrite" not in args.extra:
@@ -110,16 +131,17 @@ def main(argv=None) -> int:
             if code != 0:  # a refused folder or a bad option must not fall through to a stale best
                 print(_stopped(m, folder, code, argv), file=sys.stderr)
                 return code
-        if not (out / "best.pt").is_file():  # no evaluation ran: nothing was selected
+        if not kept.is_file():  # no evaluation ran: nothing was selected
             print(
-                f"train_all: {out / 'best.pt'} is missing: the run ended before its first "
+                f"train_all: {kept} is missing: the run ended before its first "
                 "evaluation; give more --minutes (or -- --eval-every N with a smaller N)",
                 file=sys.stderr,
             )
             return 1
-        res = evaluate(load_agent(out / "best.pt"), m)
+        res = evaluate(load_agent(kept), m)
         summary[m] = {
             "command": "cpp-mujoco " + " ".join(cmd),  # the last run's
+            "agent": str(kept),
             "wall_s": round(time.time() - t0, 1),
             "evaluated_on": "the full protocol on the grid, calm air (the paper's MDP)",
             "landing_ratio": res.landing_ratio,
@@ -128,7 +150,7 @@ def main(argv=None) -> int:
         print(json.dumps({m: summary[m]}), flush=True)
         if args.install:
             name = f"{m}-wind" if args.wind else m
-            atomic_write_bytes(BUNDLED_DIR / f"{name}.pt", (out / "best.pt").read_bytes())
+            atomic_write_bytes(BUNDLED_DIR / f"{name}.pt", kept.read_bytes())
     atomic_write_text(Path(args.out) / "summary.json", json.dumps(summary, indent=2))
     return 0
 

@@ -2,6 +2,7 @@
 summarise or install a ``best.pt`` left in a folder the training refused."""
 
 import importlib.util
+import json
 import shutil
 from pathlib import Path
 
@@ -49,7 +50,9 @@ def test_run_without_an_evaluation_stops_with_a_message(tmp_path, capsys):
     assert not (tmp_path / "summary.json").exists()
 
 
-def test_wind_agents_train_in_two_runs_the_second_from_the_first(tmp_path, monkeypatch):
+def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
+    """B: two grid runs, the second from the first, then the fine-tune in MuJoCo from the second's
+    best.pt; its agent.pt is what --install writes. C: the two grid runs only."""
     module = _train_all()
     calls = []
 
@@ -59,18 +62,32 @@ def test_wind_agents_train_in_two_runs_the_second_from_the_first(tmp_path, monke
         out.mkdir(parents=True, exist_ok=True)
         for name in ("checkpoint.pt", "final_eval.json"):
             (out / name).write_text("")
-        shutil.copyfile(BUNDLED_DIR / "B-wind.pt", out / "best.pt")
+        for name in ("best.pt", "agent.pt"):
+            shutil.copyfile(BUNDLED_DIR / "B-wind.pt", out / name)
         return 0
 
     monkeypatch.setattr(module, "_train", fake_train)
     assert module.main(["--wind", "--out", str(tmp_path), "--maps", "B"]) == 0
-    first, second = calls
-    assert first[first.index("--out") + 1] == str(tmp_path / "B-stage1")
-    assert first[first.index("--init-from") + 1] == "B"  # the paper agent
-    assert second[second.index("--out") + 1] == str(tmp_path / "B")
-    assert second[second.index("--init-from") + 1] == str(tmp_path / "B-stage1" / "agent.pt")
-    assert (first[first.index("--seed") + 1], second[second.index("--seed") + 1]) == ("0", "1")
-    assert second[second.index("--best-by") + 1] == "landing"
-    calls.clear()  # run again: the finished first run is kept, the second is resumed
+    first, second, physics = calls
+
+    def opt(cmd, name):
+        return cmd[cmd.index(name) + 1]
+
+    assert opt(first, "--out") == str(tmp_path / "B-stage1")
+    assert opt(first, "--init-from") == "B"  # the paper agent
+    assert opt(second, "--out") == str(tmp_path / "B")
+    assert opt(second, "--init-from") == str(tmp_path / "B-stage1" / "agent.pt")
+    assert [opt(c, "--seed") for c in calls] == ["0", "1", "0"]
+    assert opt(second, "--best-by") == "landing"
+    assert opt(physics, "--out") == str(tmp_path / "B-physics")
+    assert opt(physics, "--backend") == "mujoco"
+    assert opt(physics, "--init-from") == str(tmp_path / "B" / "best.pt")
+    assert opt(physics, "--total-updates") == "3000"
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["B"]["agent"] == str(tmp_path / "B-physics" / "agent.pt")
+    calls.clear()  # run again: the finished runs are kept, the last one is resumed
     assert module.main(["--wind", "--out", str(tmp_path), "--maps", "B"]) == 0
-    assert len(calls) == 1 and "--resume" in calls[0] and str(tmp_path / "B") in calls[0]
+    assert len(calls) == 1 and "--resume" in calls[0] and str(tmp_path / "B-physics") in calls[0]
+    calls.clear()
+    assert module.main(["--wind", "--out", str(tmp_path / "c"), "--maps", "C"]) == 0
+    assert [opt(c, "--out") for c in calls] == [str(tmp_path / "c" / n) for n in ("C-stage1", "C")]
