@@ -118,7 +118,8 @@ def main(argv=None) -> int:
                 for suffix, offset, options in stages
             ]  # fmt: skip
         out = runs[-1][0]
-        kept = out / ("agent.pt" if "mujoco" in runs[-1][2] else "best.pt")
+        # a physics run's best.pt is chosen on the grid, not what it was tuned for: keep its last
+        kept = out / ("agent.pt" if args.wind and m in PHYSICS_UPDATES else "best.pt")
         for folder, offset, options in runs:
             seed = str(args.seed + offset)
             cmd = ["train", "--map", m, "--seed", seed, "--out", str(folder), *options]

@@ -5,10 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cpp_mujoco.grid.actions import EAST, NORTH, SOUTH, WEST
 from cpp_mujoco.physics.airborne import air_model, ground_top, reach_below
 from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
-from tests.twin_flights import MAP, WIND, fly_twins, wander
+from tests.twin_flights import (
+    FAILURE_MOVES,
+    MAP,
+    WIND,
+    break_three,
+    failure_moves,
+    fly_twins,
+    wander,
+)
 
 
 def _twins(n: int, **kwargs) -> list[MuJoCoVectorEnv]:
@@ -73,18 +80,9 @@ def test_airborne_steps_fly_the_full_models_doubles(kwargs):
 def test_failures_near_and_into_the_ground_end_alike():
     """A diverging drone, a motor cut-off (the pack cannot carry the load: a fall onto the
     ground), one upside down, then cut-off landings: the same ends to the last bit."""
-
-    def perturb(state, cols):
-        q, v = cols[0], cols[1]
-        state[0, v.start] = 1e6
-        state[1, v.start] = 1e12
-        state[2, q.start + 3 : q.start + 7] = (0.0, 1.0, 0.0, 0.0)
-
-    actions = [NORTH, SOUTH, EAST, WEST] * 4
     with np.errstate(all="ignore"):
-        ended = fly_twins(_twins(5, battery_cutoff_v=3.95), [10] * 5,
-                          lambda s, n: np.full(n, actions[s]), steps=len(actions),
-                          perturb=perturb)  # fmt: skip
+        ended = fly_twins(_twins(5, battery_cutoff_v=3.95), [10] * 5, failure_moves,
+                          steps=len(FAILURE_MOVES), perturb=break_three)  # fmt: skip
     assert ended[0] == "numerical divergence (NaN or unstable acceleration)"
     assert ended[1].startswith("battery")
     assert ended[2] == "flipped over"

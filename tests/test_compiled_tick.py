@@ -7,11 +7,18 @@ import sys
 import numpy as np
 import pytest
 
-from cpp_mujoco.grid.actions import EAST, NORTH, SOUTH, WEST
 from cpp_mujoco.physics import compiled_tick
 from cpp_mujoco.physics.battery import CUTOFF
 from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
-from tests.twin_flights import MAP, WIND, fly_twins, wander
+from tests.twin_flights import (
+    FAILURE_MOVES,
+    MAP,
+    WIND,
+    break_three,
+    failure_moves,
+    fly_twins,
+    wander,
+)
 
 
 def _fly_both(kwargs: dict, budgets, actions_of, steps: int = 30, perturb=None) -> list:
@@ -39,17 +46,9 @@ def test_compiled_and_numpy_ticks_fly_the_same_episodes(kwargs):
 def test_failures_and_the_battery_failsafe_end_alike():
     """A diverging drone, one so fast that the pack cannot carry its load (motors cut, a fall),
     one upside down, then a cut-off landing (the failsafe) for the rest."""
-
-    def perturb(state, cols):
-        q, v = cols[0], cols[1]
-        state[0, v.start] = 1e6
-        state[1, v.start] = 1e12
-        state[2, q.start + 3 : q.start + 7] = (0.0, 1.0, 0.0, 0.0)
-
-    actions = [NORTH, SOUTH, EAST, WEST] * 4
     with np.errstate(all="ignore"):
-        ended = _fly_both({"battery_cutoff_v": 3.95}, [10] * 5, lambda s, n: np.full(n, actions[s]),
-                          steps=len(actions), perturb=perturb)  # fmt: skip
+        ended = _fly_both({"battery_cutoff_v": 3.95}, [10] * 5, failure_moves,
+                          steps=len(FAILURE_MOVES), perturb=break_three)  # fmt: skip
     assert ended[0] == "numerical divergence (NaN or unstable acceleration)"
     assert ended[1].startswith("battery")
     assert ended[2] == "flipped over"

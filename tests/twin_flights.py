@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cpp_mujoco.grid.actions import LAND
+from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.maps import GridMap
 
 # an open 5×6 map: landing strip in the middle row, targets around, one no-fly cell
@@ -48,3 +48,20 @@ def wander(seed: int, land: float):
     """Random moves (hovers where the map rejects one), a landing with probability ``land``."""
     rng = np.random.default_rng(seed)
     return lambda step, n: np.where(rng.random(n) < land, LAND, rng.integers(0, 4, size=n))
+
+
+# the failure scenario both twin tests fly: drone 0 diverges, drone 1 is so fast that the pack
+# cannot carry its load (motors cut, a fall), drone 2 starts upside down; the rest fly on
+FAILURE_MOVES = [NORTH, SOUTH, EAST, WEST] * 4
+
+
+def break_three(state, cols) -> None:
+    """``perturb`` for :func:`fly_twins`: the three broken drones of the failure scenario."""
+    q, v = cols[0], cols[1]
+    state[0, v.start] = 1e6
+    state[1, v.start] = 1e12
+    state[2, q.start + 3 : q.start + 7] = (0.0, 1.0, 0.0, 0.0)
+
+
+def failure_moves(step: int, n: int):
+    return np.full(n, FAILURE_MOVES[step])

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields
 
+from cpp_mujoco.grid.mdp import GridConfig, Rewards
 from cpp_mujoco.grid.spaces import MAX_WIND
 from cpp_mujoco.grid.wind import COMPASS, GridWind
 from cpp_mujoco.physics.config import PhysicsConfig
@@ -202,8 +203,6 @@ class TrainConfig:
     @property
     def grid_config(self):
         """The grid MDP this config trains in: its budgets, wind option and crash reward."""
-        from cpp_mujoco.grid.mdp import GridConfig, Rewards
-
         return GridConfig(
             min_budget=self.min_budget, max_budget=self.max_budget, wind=self.wind,
             rewards=Rewards(crash=self.crash_reward),
