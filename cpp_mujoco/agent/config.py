@@ -13,11 +13,13 @@ from dataclasses import asdict, dataclass, fields
 
 from cpp_mujoco.grid.mdp import GridConfig, Rewards
 from cpp_mujoco.grid.spaces import MAX_WIND
+from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.grid.wind import COMPASS, GridWind
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.turbulence import check_level
 
 BACKENDS = ("grid", "mujoco")  # where training episodes are flown: the MDP or physics
+WIND_PLANNERS = ("safe-greedy-wind", "beam-search-wind")  # the planners wind_planner_sigmas sets
 
 
 @dataclass
@@ -88,6 +90,11 @@ class TrainConfig:
     demo_fraction: float = 0.5
     demo_margin: float = 0.5  # in reward units: one new target cell is worth 0.4
     demo_weight: float = 1.0
+    # the margin the wind planners keep as guide or demonstrator (safe-greedy-wind,
+    # beam-search-wind): standard deviations of the way home's spread at gusty wind
+    # (ReturnMargin.gusty_sigmas). The agent learns the margin its teachers keep: 5.5 took B's
+    # rated-wind landings from 98.8 % to 99.3–99.8 % for ~5 points of coverage (docs/agent.md)
+    wind_planner_sigmas: float = 4.0
     learning_starts: int = 2_000  # env steps collected before the first update
     total_updates: int = 26_000  # training length in gradient updates (≈ 18 min on 2 cores)
     max_minutes: float = 0.0  # stop after this wall-clock time (0 = no limit)
@@ -134,12 +141,17 @@ class TrainConfig:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in (
             "max_minutes", "checkpoint_minutes", "budget_scale", "threads", "learning_starts",
-            "guide_fraction", "updates_per_step", "wind_max_speed",
+            "guide_fraction", "updates_per_step", "wind_max_speed", "wind_planner_sigmas",
         ):  # fmt: skip
             if not 0 <= getattr(self, name) < float("inf"):  # NaN fails too
                 raise ValueError(f"{name} must be a finite number >= 0, got {getattr(self, name)}")
         if not 0 < self.learning_rate < float("inf"):
             raise ValueError(f"learning_rate must be > 0, got {self.learning_rate}")
+        if self.wind_planner_sigmas != ReturnMargin.gusty_sigmas and not self._wind_teacher():
+            raise ValueError(
+                "wind_planner_sigmas sets the wind planners' margin: it needs guide or "
+                "demo_planner safe-greedy-wind or beam-search-wind"
+            )
         self.wind  # noqa: B018 - GridWind checks the wind options now, before any run folder
         self._check_backend()
 
@@ -199,6 +211,17 @@ class TrainConfig:
             calm_fraction=self.wind_calm_fraction,
             gust_scale=(1.0, self.wind_gust_scale),
         )
+
+    def _wind_teacher(self) -> bool:
+        """Whether a wind planner guides or demonstrates in this run."""
+        guide = self.guide if self.guide_fraction > 0 else ""
+        demo = self.demo_planner if self.demo_fraction > 0 else ""
+        return bool({guide, demo} & set(WIND_PLANNERS))
+
+    @property
+    def wind_margin(self) -> ReturnMargin:
+        """The margin the wind planners keep as this run's guide and demonstrator."""
+        return ReturnMargin(gusty_sigmas=self.wind_planner_sigmas)
 
     @property
     def grid_config(self):

@@ -82,13 +82,15 @@ class GeneralTrainer(Trainer):
         self._build_networks()
         self.replay = MultiMapReplay(c.buffer_size, c.num_envs, self.pool, c.n_step, c.gamma)
         self.rng = np.random.default_rng(c.seed)
-        self.guide = MapwiseGuide(make_planner(c.guide), self.pool) if c.guide_fraction else None
+        self.guide = None
+        if c.guide_fraction:
+            self.guide = MapwiseGuide(make_planner(c.guide, c.wind_margin), self.pool)
         self.demos = None
         if c.demo_fraction > 0:
             # the pool holds maps_per_size maps of each size in turn: the first of each size
             ids = [k * c.maps_per_size + j for k in range(len(c.sizes)) for j in range(c.demo_maps)]
             self.demos = record_pool_demonstrations(
-                self.pool, ids, make_planner(c.demo_planner), c.n_step, c.gamma,
+                self.pool, ids, make_planner(c.demo_planner, c.wind_margin), c.n_step, c.gamma,
                 c.demo_budget_step,
             )  # fmt: skip
         self.torch_gen = torch.Generator().manual_seed(c.seed)

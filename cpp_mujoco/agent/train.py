@@ -88,12 +88,13 @@ class Trainer:
             c.buffer_size, c.num_envs, self.grid_map.layers, c.n_step, c.gamma
         )
         self.rng = np.random.default_rng(c.seed)
-        self.guide = make_planner(c.guide) if c.guide_fraction > 0 else None
+        self.guide = make_planner(c.guide, c.wind_margin) if c.guide_fraction > 0 else None
         self.demos = None
         if c.demo_fraction > 0:
             self.demos = record_demonstrations(
-                self.grid_map, self.grid_config, make_planner(c.demo_planner), c.n_step, c.gamma
-            )
+                self.grid_map, self.grid_config, make_planner(c.demo_planner, c.wind_margin),
+                c.n_step, c.gamma,
+            )  # fmt: skip
         self.torch_gen = torch.Generator().manual_seed(c.seed)
         self.obs, _ = self.env.reset(seed=c.seed)
         self.updates = self.env_steps = self.episodes = 0

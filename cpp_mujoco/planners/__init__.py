@@ -1,5 +1,6 @@
 """Reference planners: every learned agent is compared against these through the same protocol."""
 
+from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.planners.beam_search import BeamSearchPlanner
 from cpp_mujoco.planners.random_planner import RandomPlanner
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
@@ -16,13 +17,17 @@ PLANNERS = {
 }
 
 
-def make_planner(name: str):
+def make_planner(name: str, wind_margin: ReturnMargin | None = None):
     """A reference planner by name (``random``, ``safe-greedy``, ``beam-search``,
-    ``safe-greedy-wind``, ``beam-search-wind``)."""
+    ``safe-greedy-wind``, ``beam-search-wind``); ``wind_margin`` is the margin the two wind
+    planners keep (None: their default), the others price no wind and take none."""
     try:
-        return PLANNERS[name]()
+        kind = PLANNERS[name]
     except KeyError:
         raise ValueError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}") from None
+    if wind_margin is not None and kind in (WindSafeGreedyPlanner, WindDemonstrator):
+        return kind(margin=wind_margin)
+    return kind()
 
 
 __all__ = [

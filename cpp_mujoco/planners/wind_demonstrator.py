@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.planners.beam_search import BeamSearchPlanner
 from cpp_mujoco.planners.safe_greedy_wind import WindSafeGreedyPlanner, wind_from_observation
 
@@ -19,9 +20,9 @@ from cpp_mujoco.planners.safe_greedy_wind import WindSafeGreedyPlanner, wind_fro
 class WindDemonstrator:
     name = "beam-search-wind"
 
-    def __init__(self, fov_side: int = 3):
+    def __init__(self, fov_side: int = 3, margin: ReturnMargin | None = None):
         self.calm = BeamSearchPlanner(fov_side=fov_side)
-        self.windy = WindSafeGreedyPlanner(fov_side=fov_side)
+        self.windy = WindSafeGreedyPlanner(fov_side=fov_side, margin=margin)
 
     def reset(self, num_episodes: int, seed: int | None = None) -> None:
         self.calm.reset(num_episodes, seed)
