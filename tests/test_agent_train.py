@@ -94,6 +94,29 @@ def test_guided_exploration_follows_planner_and_decays(tmp_path):
     assert trainer.guided_envs() == 0
 
 
+def test_the_wind_planner_margin_option_reaches_guide_and_demonstrator(tmp_path, monkeypatch):
+    import cpp_mujoco.agent.train as train_module
+
+    taught = []
+    real = train_module.record_demonstrations
+    monkeypatch.setattr(
+        train_module, "record_demonstrations",
+        lambda m, cfg, planner, *a: taught.append(planner) or real(m, cfg, planner, *a),
+    )  # fmt: skip
+    cfg = TrainConfig(
+        map="B", num_envs=8, threads=1, wind_max_speed=12, guide="safe-greedy-wind",
+        demo_planner="beam-search-wind", wind_planner_sigmas=6.0,
+    )  # fmt: skip
+    trainer = Trainer(cfg, tmp_path)
+    assert trainer.guide.margin.gusty_sigmas == 6.0
+    assert [p.windy.margin.gusty_sigmas for p in taught] == [6.0]
+    # the option sets the wind planners' margin only: without one it is refused, not ignored
+    with pytest.raises(ValueError, match="wind_planner_sigmas .* needs guide or demo_planner"):
+        TrainConfig(wind_planner_sigmas=6.0)
+    with pytest.raises(ValueError, match="wind_planner_sigmas must be a finite number"):
+        TrainConfig(wind_planner_sigmas=float("nan"), guide="safe-greedy-wind")
+
+
 def test_train_help_states_each_default_once_and_explains_every_option(capsys):
     from cpp_mujoco.agent.cli import _HELP
     from cpp_mujoco.cli import main

@@ -104,6 +104,25 @@ def test_the_wind_planner_turns_home_earlier_against_the_wind():
     assert actions[0] == EAST and actions[1] == WEST
 
 
+def test_a_wider_margin_turns_home_sooner_as_guide_and_as_demonstrator():
+    """The margin the training option sets (``--wind-planner-sigmas``): on the strip, 9 m/s from
+    the west, cell 5 with 20 units, the default 4σ still flies east to the targets, 6.5σ heads
+    home; both wind planners made with the margin keep it, the others take none."""
+    strip = GridMap.from_ascii(["LTTTTTTTTTTTTTTT"], name="strip")
+    mdp = GridMDP(strip, 1)
+    seen = np.zeros((1, strip.landing.size), bool)
+    seen[:, :7] = True
+    mdp.restore(np.array([5]), np.array([20]), seen)
+    obs = mdp.observation()
+    obs["wind"] = wind_velocity(np.array([9.0]), np.array([270.0]))
+    wide = ReturnMargin(gusty_sigmas=6.5)
+    assert make_planner("safe-greedy-wind").act(obs)[0] == EAST
+    assert make_planner("safe-greedy-wind", wide).act(obs)[0] == WEST
+    assert make_planner("beam-search-wind", wide).act(obs)[0] == WEST  # windy: its wind half
+    assert make_planner("beam-search-wind", wide).windy.margin == wide
+    assert isinstance(make_planner("beam-search", wide), BeamSearchPlanner)
+
+
 def test_the_demonstrator_flies_the_beam_search_in_calm_air_only():
     mdp = GridMDP(ROOM, 4, GridConfig(min_budget=20, max_budget=20))
     mdp.reset(np.random.default_rng(3))

@@ -60,7 +60,7 @@ _HELP = {
     "demo_margin": "large-margin loss margin on demonstrations, in reward units",
     "demo_weight": "weight of the large-margin loss",
     "wind_planner_sigmas": "margin the wind planners keep as guide or demonstrator: standard"
-    " deviations of the way home's spread in gusty wind (safe-greedy-wind, beam-search-wind)",
+    " deviations of the way home's spread in gusty wind",
     "learning_starts": "environment steps collected before the first update",
     "total_updates": "training length in gradient updates",
     "max_minutes": "stop after this many minutes of training (0 = no limit)",
