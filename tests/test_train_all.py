@@ -83,6 +83,10 @@ def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
     assert opt(physics, "--backend") == "mujoco"
     assert opt(physics, "--init-from") == str(tmp_path / "B" / "best.pt")
     assert opt(physics, "--total-updates") == "3000"
+    # B's teachers keep the wider margin from stage 2 on, and physics flies more calm slots
+    assert "--wind-planner-sigmas" not in first
+    assert opt(second, "--wind-planner-sigmas") == opt(physics, "--wind-planner-sigmas") == "6.0"
+    assert opt(physics, "--physics-calm-share") == "0.35"
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["B"]["agent"] == str(tmp_path / "B-physics" / "agent.pt")
     calls.clear()  # run again: the finished runs are kept, the last one is resumed
@@ -91,3 +95,4 @@ def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
     calls.clear()
     assert module.main(["--wind", "--out", str(tmp_path / "c"), "--maps", "C"]) == 0
     assert [opt(c, "--out") for c in calls] == [str(tmp_path / "c" / n) for n in ("C-stage1", "C")]
+    assert opt(calls[1], "--wind-planner-sigmas") == "4.0"  # the planners' own margin
