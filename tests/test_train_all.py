@@ -86,7 +86,7 @@ def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
     # B's teachers keep the wider margin from stage 2 on, and physics flies more calm slots
     assert "--wind-planner-sigmas" not in first
     assert opt(second, "--wind-planner-sigmas") == opt(physics, "--wind-planner-sigmas") == "6.0"
-    assert opt(physics, "--physics-calm-share") == "0.35"
+    assert opt(physics, "--physics-calm-share") == "0.5"
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["B"]["agent"] == str(tmp_path / "B-physics" / "agent.pt")
     calls.clear()  # run again: the finished runs are kept, the last one is resumed
