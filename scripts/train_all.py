@@ -51,13 +51,13 @@ WIND_STAGES = [  # (folder suffix, seed offset, options)
 # per map, from stage 2 on: the margin the wind planners keep as guide and demonstrator (the
 # agent learns the margin its teachers keep) and the physics run's calm share. Their defaults
 # land A and C ≥ 99.5 % at the rated wind; B's gust peaks take a wider margin (docs/agent.md)
-WIND_MARGIN = {"A": ("4.0", "0.2"), "B": ("6.0", "0.5"), "C": ("4.0", "0.2")}
+WIND_MARGIN = {"A": ("4.0", "0.2"), "B": ("6.0", "0.5"), "C": ("4.0", "0.5")}
 # then, on these maps, the grid agent fine-tuned in MuJoCo (the updates each bundled agent had):
 # the map's calm share of the 64 slots calm (WIND_MARGIN), the rest at the rated wind from
 # N/E/S/W; a small learning rate and the grid demonstrations in every minibatch keep the grid
 # agent (docs/agent.md). It removed
 # the calm-air transfer crashes of A and B; C's grid agent has none to remove
-PHYSICS_UPDATES = {"A": 2000, "B": 3000}
+PHYSICS_UPDATES = {"A": 2000, "B": 3000, "C": 2000}
 PHYSICS_STAGE = ("physics", 0, [
     "--backend", "mujoco", "--init-from", "{stage2}/best.pt", "--wind-max-speed", "12",
     "--wind-calm-fraction", "0.35", "--physics-wind-speed", "9", "--physics-calm-share",
@@ -66,6 +66,22 @@ PHYSICS_STAGE = ("physics", 0, [
     "--learning-rate", "2e-5", "--best-by", "landing", "--num-envs", "64",
     "--updates-per-step", "2", "--total-updates", "{physics_updates}",
 ])  # fmt: skip
+
+
+def wind_runs(m: str, out: Path) -> list[tuple[Path, int, list[str]]]:
+    """Map ``m``'s wind runs in ``out``: (folder, seed offset, ``train`` options), in order."""
+    stage = {
+        "paper": m,
+        "stage1": str(out / f"{m}-stage1"),
+        "stage2": str(out / m),
+        "physics_updates": PHYSICS_UPDATES.get(m),
+    }
+    stage["sigmas"], stage["calm_share"] = WIND_MARGIN.get(m, ("4.0", "0.2"))
+    stages = WIND_STAGES + ([PHYSICS_STAGE] if m in PHYSICS_UPDATES else [])
+    return [
+        (out / (f"{m}-{suffix}" if suffix else m), offset, [o.format(**stage) for o in options])
+        for suffix, offset, options in stages
+    ]
 
 
 def _train(cmd: list[str]) -> int:
@@ -110,21 +126,8 @@ def main(argv=None) -> int:
     minutes = args.minutes if args.minutes is not None else (0.0 if args.wind else 20.0)
     for m in args.maps:
         t0 = time.time()
-        runs = [(Path(args.out) / m, 0, [])]  # (folder, seed offset, options); the last is kept
-        if args.wind:
-            stage = {
-                "paper": m,
-                "stage1": str(Path(args.out) / f"{m}-stage1"),
-                "stage2": str(Path(args.out) / m),
-                "physics_updates": PHYSICS_UPDATES.get(m),
-            }
-            stage["sigmas"], stage["calm_share"] = WIND_MARGIN.get(m, ("4.0", "0.2"))
-            stages = WIND_STAGES + ([PHYSICS_STAGE] if m in PHYSICS_UPDATES else [])
-            runs = [
-                (Path(args.out) / (f"{m}-{suffix}" if suffix else m), offset,
-                 [o.format(**stage) for o in options])
-                for suffix, offset, options in stages
-            ]  # fmt: skip
+        # (folder, seed offset, options); the last is kept
+        runs = wind_runs(m, Path(args.out)) if args.wind else [(Path(args.out) / m, 0, [])]
         out = runs[-1][0]
         # a physics run's best.pt is chosen on the grid, not what it was tuned for: keep its last
         kept = out / ("agent.pt" if args.wind and m in PHYSICS_UPDATES else "best.pt")

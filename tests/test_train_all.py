@@ -6,9 +6,13 @@ import json
 import shutil
 from pathlib import Path
 
-from cpp_mujoco.agent import BUNDLED_DIR
+import pytest
+
+from cpp_mujoco.agent import BUNDLED_DIR, bundled_agents, load_agent
+from cpp_mujoco.agent.config import TrainConfig
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "train_all.py"
+WIND_AGENTS = [n for n in bundled_agents() if n.endswith("-wind")]
 
 
 def _train_all():
@@ -52,7 +56,7 @@ def test_run_without_an_evaluation_stops_with_a_message(tmp_path, capsys):
 
 def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
     """B: two grid runs, the second from the first, then the fine-tune in MuJoCo from the second's
-    best.pt; its agent.pt is what --install writes. C: the two grid runs only."""
+    best.pt; its agent.pt is what --install writes. C: the same three runs, its own options."""
     module = _train_all()
     calls = []
 
@@ -94,5 +98,24 @@ def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
     assert len(calls) == 1 and "--resume" in calls[0] and str(tmp_path / "B-physics") in calls[0]
     calls.clear()
     assert module.main(["--wind", "--out", str(tmp_path / "c"), "--maps", "C"]) == 0
-    assert [opt(c, "--out") for c in calls] == [str(tmp_path / "c" / n) for n in ("C-stage1", "C")]
+    outs = [str(tmp_path / "c" / n) for n in ("C-stage1", "C", "C-physics")]
+    assert [opt(c, "--out") for c in calls] == outs
     assert opt(calls[1], "--wind-planner-sigmas") == "4.0"  # the planners' own margin
+    assert opt(calls[2], "--total-updates") == "2000"
+
+
+@pytest.mark.parametrize("name", WIND_AGENTS)
+def test_each_bundled_wind_agent_is_what_train_all_makes(name):
+    """The docs say ``train_all.py --wind`` makes the bundled wind agents: each one's stored
+    config holds the options of its map's last wind run (seed included); a hand-copied or
+    differently trained file fails here instead of silently standing for the command."""
+    m = name.removesuffix("-wind")
+    folder, offset, options = _train_all().wind_runs(m, Path("runs/wind"))[-1]
+    config = TrainConfig.from_dict(load_agent(name).metadata["config"])
+    assert config.map == m and config.seed == offset
+    pairs = dict(zip(options[::2], options[1::2], strict=True))
+    pairs.pop("--init-from")  # a path on the machine that trained it
+    for flag, value in pairs.items():
+        key = flag[2:].replace("-", "_")
+        have = getattr(config, key)
+        assert type(have)(value) == have, f"{name}: {flag} {value} in train_all, {have} bundled"
