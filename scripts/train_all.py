@@ -49,14 +49,14 @@ WIND_STAGES = [  # (folder suffix, seed offset, options)
     ]),
 ]  # fmt: skip
 # per map, from stage 2 on: the margin the wind planners keep as guide and demonstrator (the
-# agent learns the margin its teachers keep) and the physics run's calm share. Their defaults
-# land A and C ≥ 99.5 % at the rated wind; B's gust peaks take a wider margin (docs/agent.md)
+# agent learns the margin its teachers keep) and the physics run's calm share. 4σ lands A and C
+# ≥ 99.5 % at the rated wind; B's gust peaks take 6σ; half the slots calm kept B's and C's calm
+# landings at 100 % where a fifth or a third did not always (docs/agent.md, "Session 9")
 WIND_MARGIN = {"A": ("4.0", "0.2"), "B": ("6.0", "0.5"), "C": ("4.0", "0.5")}
-# then, on these maps, the grid agent fine-tuned in MuJoCo (the updates each bundled agent had):
-# the map's calm share of the 64 slots calm (WIND_MARGIN), the rest at the rated wind from
-# N/E/S/W; a small learning rate and the grid demonstrations in every minibatch keep the grid
-# agent (docs/agent.md). It removed
-# the calm-air transfer crashes of A and B; C's grid agent has none to remove
+# then the grid agent fine-tuned in MuJoCo (the updates each bundled agent had): the map's calm
+# share of the 64 slots calm, the rest at the rated wind from N/E/S/W; a small learning rate and
+# the grid demonstrations in every minibatch keep the grid agent. It removes the calm-air
+# transfer crashes that grid training leaves (docs/agent.md, "Fine-tuning in physics")
 PHYSICS_UPDATES = {"A": 2000, "B": 3000, "C": 2000}
 PHYSICS_STAGE = ("physics", 0, [
     "--backend", "mujoco", "--init-from", "{stage2}/best.pt", "--wind-max-speed", "12",

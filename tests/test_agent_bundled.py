@@ -51,7 +51,7 @@ def test_every_bundled_map_has_a_wind_robust_agent_beside_its_paper_agent():
 def test_wind_agent_reads_the_wind_and_lands_where_the_paper_agent_crashes(name):
     """A wind-robust agent's network reads budget and wind. In the grid's wind option at 9 m/s
     (N/E/S/W, gusts) it lands in ≥ 99 % of the full protocol where the paper agent of its map
-    lands in 43–65 % (measured: 99.78 / 99.75 / 99.84 % on A / B / C; A and B were fine-tuned in
+    lands in 43–65 % (measured: 99.78 / 99.75 / 100 % on A / B / C; all three were fine-tuned in
     MuJoCo, whose moves cost less than the grid model's, and judged there: docs/agent.md), and
     in the paper's calm MDP it still lands in ≥ 99.5 % (measured: 100 % on each)."""
     agent = load_agent(name)
