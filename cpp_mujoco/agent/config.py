@@ -92,8 +92,8 @@ class TrainConfig:
     demo_weight: float = 1.0
     # the margin the wind planners keep as guide or demonstrator (safe-greedy-wind,
     # beam-search-wind): standard deviations of the way home's spread at gusty wind
-    # (ReturnMargin.gusty_sigmas). The agent learns the margin its teachers keep: 5.5 took B's
-    # rated-wind landings from 98.8 % to 99.3–99.8 % for ~5 points of coverage (docs/agent.md)
+    # (ReturnMargin.gusty_sigmas). The agent learns the margin its teachers keep: 6 took B's
+    # rated-wind landings from 98.7–98.8 % to 99.6–99.8 % for ~7 points of coverage (docs/agent.md)
     wind_planner_sigmas: float = 4.0
     learning_starts: int = 2_000  # env steps collected before the first update
     total_updates: int = 26_000  # training length in gradient updates (≈ 18 min on 2 cores)
