@@ -17,9 +17,9 @@ from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.grid.wind import COMPASS, GridWind
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.turbulence import check_level
+from cpp_mujoco.planners import WIND_PLANNERS
 
 BACKENDS = ("grid", "mujoco")  # where training episodes are flown: the MDP or physics
-WIND_PLANNERS = ("safe-greedy-wind", "beam-search-wind")  # the planners wind_planner_sigmas sets
 
 
 @dataclass
@@ -94,7 +94,7 @@ class TrainConfig:
     # beam-search-wind): standard deviations of the way home's spread at gusty wind
     # (ReturnMargin.gusty_sigmas). The agent learns the margin its teachers keep: 6 took B's
     # rated-wind landings from 98.7–98.8 % to 99.6–99.8 % for ~7 points of coverage (docs/agent.md)
-    wind_planner_sigmas: float = 4.0
+    wind_planner_sigmas: float = ReturnMargin.gusty_sigmas  # 4, the planners' own
     learning_starts: int = 2_000  # env steps collected before the first update
     total_updates: int = 26_000  # training length in gradient updates (≈ 18 min on 2 cores)
     max_minutes: float = 0.0  # stop after this wall-clock time (0 = no limit)

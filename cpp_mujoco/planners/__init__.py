@@ -15,6 +15,7 @@ PLANNERS = {
     "safe-greedy-wind": WindSafeGreedyPlanner,
     "beam-search-wind": WindDemonstrator,
 }
+WIND_PLANNERS = ("safe-greedy-wind", "beam-search-wind")  # the ones that keep a ReturnMargin
 
 
 def make_planner(name: str, wind_margin: ReturnMargin | None = None):
@@ -25,13 +26,14 @@ def make_planner(name: str, wind_margin: ReturnMargin | None = None):
         kind = PLANNERS[name]
     except KeyError:
         raise ValueError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}") from None
-    if wind_margin is not None and kind in (WindSafeGreedyPlanner, WindDemonstrator):
+    if wind_margin is not None and name in WIND_PLANNERS:
         return kind(margin=wind_margin)
     return kind()
 
 
 __all__ = [
     "PLANNERS",
+    "WIND_PLANNERS",
     "BeamSearchPlanner",
     "RandomPlanner",
     "SafeGreedyPlanner",
