@@ -46,6 +46,8 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
     )
     obj = load_checkpoint(where.path)
     net = network_from_checkpoint(obj, str(where.path))
+    # an agent trained with the return mask acts with it; files from before the option had none
+    return_mask = bool((obj.get("config") or {}).get("return_mask", False))
     return GreedyAgent(
         net,
         obj["budget_scale"],
@@ -54,10 +56,12 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
         metadata={
             **{k: obj.get(k) for k in ("map", "config", "metrics")},
             "architecture": obj.get("architecture", "paper"),
+            "return_mask": return_mask,
             "source": str(where.path),
             "bundled": where.bundled,
             "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
         },
+        return_mask=return_mask,
     )
 
 

@@ -42,6 +42,8 @@ _HELP = {
     "crash_reward": "the MDP's crash reward while training (the paper's: −150); evaluation"
     " reports landing and coverage, which do not depend on it",
     "init_from": "start from this agent's weights (bundled name or file; empty = random)",
+    "return_mask": "act only among the actions after which the way home is still paid (the safe"
+    " greedy planner's return rule): every calm grid episode lands; off = the paper's agent",
     "backend": "where the training episodes are flown: grid (the MDP) or mujoco (fine-tuning in"
     " physics, several weathers at once; the evaluation stays on the grid)",
     "physics_wind_speed": "backend mujoco: steady wind of the windy slots, m/s (0 = all calm)",

@@ -95,6 +95,11 @@ class TrainConfig:
     # (ReturnMargin.gusty_sigmas). The agent learns the margin its teachers keep: 6 took B's
     # rated-wind landings from 98.7–98.8 % to 99.6–99.8 % for ~7 points of coverage (docs/agent.md)
     wind_planner_sigmas: float = ReturnMargin.gusty_sigmas  # 4, the planners' own
+    # act only among the actions after which the way home is still paid (the safe greedy
+    # planner's return rule, MapGraph.safe_actions): the soft-max, the greedy policy and the
+    # DDQN target's argmax are masked, so every calm-air episode lands by construction and the
+    # network learns where to fly, not when to turn home. Off = the paper's agent (calm grid only)
+    return_mask: bool = False
     learning_starts: int = 2_000  # env steps collected before the first update
     total_updates: int = 26_000  # training length in gradient updates (≈ 18 min on 2 cores)
     max_minutes: float = 0.0  # stop after this wall-clock time (0 = no limit)
@@ -151,6 +156,11 @@ class TrainConfig:
             raise ValueError(
                 "wind_planner_sigmas sets the wind planners' margin: it needs guide or "
                 "demo_planner safe-greedy-wind or beam-search-wind"
+            )
+        if self.return_mask and (self.wind_max_speed or self.backend != "grid"):
+            raise ValueError(
+                "return_mask counts moves, as in calm grid air; in wind or physics a move costs "
+                "more (use the wind planners as teachers, or the return guard)"
             )
         self.wind  # noqa: B018 - GridWind checks the wind options now, before any run folder
         self._check_backend()
@@ -258,6 +268,13 @@ class TrainConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def learning_rate_at(self, updates: int) -> float:
+        """Linear warm-up over ``lr_warmup_updates``, then cosine decay to ``lr_final``·lr."""
+        warmup = min(1.0, (updates + 1) / self.lr_warmup_updates) if self.lr_warmup_updates else 1
+        progress = min(1.0, updates / max(self.total_updates, 1))
+        decay = self.lr_final + (1.0 - self.lr_final) * 0.5 * (1.0 + math.cos(math.pi * progress))
+        return self.learning_rate * warmup * float(decay)
 
     @classmethod
     def from_dict(cls, data: dict) -> TrainConfig:

@@ -19,6 +19,16 @@ import torch.nn.functional as F
 from torch import nn
 
 
+def mask_unsafe(q: torch.Tensor, safe: torch.Tensor | None) -> torch.Tensor:
+    """Q-values (N, 5) with the actions outside ``safe`` (N, 5 bool; None: all allowed) at −∞,
+    so argmax and soft-max choose among the allowed ones (invalid-action masking, Huang &
+    Ontañón 2022). A row with no allowed action is left as it is."""
+    if safe is None:
+        return q
+    safe = safe | ~safe.any(dim=1, keepdim=True)
+    return q.masked_fill(~safe, float("-inf"))
+
+
 @torch.no_grad()
 def ddqn_target(
     online: nn.Module,
@@ -27,9 +37,11 @@ def ddqn_target(
     next_budget: torch.Tensor,
     returns: torch.Tensor,
     discount: torch.Tensor,
+    next_safe: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    """Y = R + discount · Q_θ̄(s′, argmax_a′ Q_θ(s′, a′)); discount = γⁿ, or 0 if terminated."""
-    best = online(next_grid, next_budget).argmax(dim=1, keepdim=True)
+    """Y = R + discount · Q_θ̄(s′, argmax_a′ Q_θ(s′, a′)); discount = γⁿ, or 0 if terminated.
+    With ``next_safe`` the argmax runs over those actions only: the policy acts so."""
+    best = mask_unsafe(online(next_grid, next_budget), next_safe).argmax(dim=1, keepdim=True)
     value = target(next_grid, next_budget).gather(1, best).squeeze(1)
     return returns + discount * value
 
@@ -87,10 +99,12 @@ def ddqn_update(
 ) -> dict[str, float]:
     """One gradient step on a minibatch, then the soft target update. Returns loss and mean Q.
 
-    With ``batch["demo"]`` (a bool mask of demonstrated rows) the large-margin loss is added."""
+    With ``batch["demo"]`` (a bool mask of demonstrated rows) the large-margin loss is added;
+    with ``batch["next_safe"]`` the target's argmax is masked (:func:`mask_unsafe`)."""
     y = ddqn_target(
-        online, target, batch["next_grid"], batch["next_budget"], batch["return"], batch["discount"]
-    )
+        online, target, batch["next_grid"], batch["next_budget"], batch["return"],
+        batch["discount"], batch.get("next_safe"),
+    )  # fmt: skip
     q = online(batch["grid"], batch["budget"])
     q_taken = q.gather(1, batch["action"][:, None]).squeeze(1)
     loss = td_loss(q_taken, y, loss_kind)

@@ -46,6 +46,11 @@ _GENERAL_HELP = {
     "home_input": "the network also reads the moves home (fewest moves from the UAV's cell to "
     "a landing cell, / the budget scale); --resume keeps the run's own setting (off for runs "
     "from before the option)",
+    "return_mask": "act only among the actions after which the way home is still paid (the "
+    "safe greedy planner's return rule), in training and as a policy; --resume keeps the run's "
+    "own setting (off for runs from before the option)",
+    "init_from": "start from this general agent's weights (a run's agent.pt or best.pt of the "
+    "same network; empty = random)",
     "eval_budget_step": "validation flies every n-th budget of each size class",
     "budget_scale": "network input = budget / this (0 = the largest budget of --sizes)",
 }

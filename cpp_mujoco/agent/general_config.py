@@ -3,10 +3,10 @@ map pool, the network's shape and the validation maps.
 
 Every learning setting (DDQN, optimiser, guide, demonstrations, schedule) means what it means
 for the per-map agent and is documented in :mod:`cpp_mujoco.agent.config`; the defaults that
-differ here are longer, since the agent must learn a skill instead of one map's tour. Four
+differ here are longer, since the agent must learn a skill instead of one map's tour. Three
 inherited fields are not used: ``map`` (the maps come from the generator), ``min_budget`` and
-``max_budget`` (each map flies its size class's budgets, :func:`size_classes.budget_range`) and
-``init_from``.
+``max_budget`` (each map flies its size class's budgets, :func:`size_classes.budget_range`);
+``init_from`` names a general agent of the same network to start from.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from cpp_mujoco.map_generator import MIN_SIZE
 from cpp_mujoco.maps import MAX_SIDE
 from cpp_mujoco.size_classes import budget_range
 
-UNUSED = ("map", "min_budget", "max_budget", "init_from")  # inherited, not options here
+UNUSED = ("map", "min_budget", "max_budget")  # inherited, not options here
 NETWORK_FIELDS = ("local_size", "global_size", "conv_filters", "hidden", "num_hidden")
 # the general networks: GeneralQNetwork (Theile et al. 2021) and its fully convolutional
 # alternative FCNQNetwork, which reads neither local_size nor global_size
@@ -61,6 +61,9 @@ class GeneralTrainConfig(TrainConfig):
     # small net must otherwise infer from the pixels of an unseen map. Either architecture.
     # A config stored before the option reads False (:meth:`from_dict`): such runs had none
     home_input: bool = True
+    # act among the return rule's safe actions (TrainConfig.return_mask): on for new general
+    # runs — the agent must fly unseen maps home every time; a config stored before reads False
+    return_mask: bool = True
     # --- defaults that differ from the per-map agent's -----------------------------------------
     buffer_size: int = 200_000  # many maps: a longer memory (≈ 35 MB packed)
     total_updates: int = 200_000  # a skill, not a tour: a GPU or a long CPU run
@@ -106,13 +109,12 @@ class GeneralTrainConfig(TrainConfig):
         check_seeds(self.val_seed, self.val_maps_per_size, "validation map", VALIDATION_SEEDS)
         if self.wind_max_speed:
             raise ValueError("the general agent has no wind option yet (wind_max_speed must be 0)")
-        if self.init_from:
-            raise ValueError("the general agent starts from random weights (init_from is unused)")
 
     @classmethod
     def from_dict(cls, data: dict) -> GeneralTrainConfig:
-        """A stored config; one without ``home_input`` is from before it: its network had none."""
-        return super().from_dict({"home_input": False, **data})
+        """A stored config; one without ``home_input`` or ``return_mask`` is from before them:
+        its run had neither."""
+        return super().from_dict({"home_input": False, "return_mask": False, **data})
 
     @property
     def input_budget_scale(self) -> float:

@@ -65,8 +65,28 @@ def build_network(config: GeneralTrainConfig) -> GeneralQNetwork | FCNQNetwork:
     return NETWORKS[config.architecture][0](**config.network_kwargs())
 
 
+def initial_general_weights(config: GeneralTrainConfig) -> dict | None:
+    """The weights ``config.init_from`` names (a general agent or run checkpoint of the config's
+    very network), or None; :class:`CheckpointError` for any other file."""
+    if not config.init_from:
+        return None
+    path = Path(config.init_from)
+    state = load_checkpoint(path)
+    arch, kwargs = NETWORKS[config.architecture][1], build_network(config).kwargs
+    if not is_general(state) or state["architecture"] != arch or state["network_kwargs"] != kwargs:
+        raise CheckpointError(
+            f"{path} holds {state.get('architecture', 'paper')} {state['network_kwargs']}; "
+            f"--init-from needs this run's network: {arch} {kwargs}"
+        )
+    return state["network"]
+
+
 class GeneralTrainer(Trainer):
-    def __init__(self, config: GeneralTrainConfig, out_dir: str | os.PathLike):
+    def __init__(
+        self, config: GeneralTrainConfig, out_dir: str | os.PathLike, init: dict | None = None
+    ):
+        """``init``: the starting weights (:func:`initial_general_weights`); a resume then
+        overwrites them with its own."""
         # not Trainer.__init__, which builds one map's env, network and memory; the attributes
         # set here are those the inherited loop reads
         self.config = c = config
@@ -80,6 +100,9 @@ class GeneralTrainer(Trainer):
         self.env = MultiMapVectorEnv(self.pool, c.num_envs, c.episodes_per_map)
         torch.manual_seed(c.seed)
         self._build_networks()
+        if init is not None:
+            self.online.load_state_dict(init)
+            self.target.load_state_dict(init)
         self.replay = MultiMapReplay(c.buffer_size, c.num_envs, self.pool, c.n_step, c.gamma)
         self.rng = np.random.default_rng(c.seed)
         self.guide = None
@@ -124,8 +147,9 @@ class GeneralTrainer(Trainer):
     # ------------------------------------------------------------------ evaluation and logging
     def agent(self) -> GreedyAgent:
         return GreedyAgent(
-            self.online, self.config.input_budget_scale, self.device, name="ddqn-general"
-        )
+            self.online, self.config.input_budget_scale, self.device, name="ddqn-general",
+            return_mask=self.config.return_mask,
+        )  # fmt: skip
 
     def evaluate(self, full: bool = False) -> ValidationResult:
         """Greedy protocol on the validation maps, every ``eval_budget_step``-th budget; the
@@ -195,17 +219,19 @@ class GeneralTrainer(Trainer):
         return True
 
     def _keep_stored_home_input(self, state: dict) -> None:
-        """A run without the moves home input (from before the option, or ``home_input=False``)
-        resumes without it, although new runs default to it: its weights have no place for
-        it. Only that way round — dropping the input of a run that has it is a changed setting,
-        which :func:`check_general_resumable` refuses."""
-        if not self.config.home_input:
-            return
+        """A run without the moves home input or the return mask (from before the options, or
+        turned off) resumes without them, although new runs default to them: its weights have
+        no place for the input, and it learnt its values unmasked. Only that way round —
+        dropping either from a run that has it is a changed setting, which
+        :func:`check_general_resumable` refuses."""
         try:
             stored = GeneralTrainConfig.from_dict(state["config"])
         except (KeyError, TypeError, ValueError):
             return  # check_general_resumable says what is wrong with it
-        if not stored.home_input:
+        if self.config.return_mask and not stored.return_mask:
+            print("resuming without the return mask, as the run was trained")
+            self.config = replace(self.config, return_mask=False)
+        if self.config.home_input and not stored.home_input:
             print("resuming without the moves home input, as the run was trained")
             self.config = replace(self.config, home_input=False)
             self._build_networks()
@@ -256,7 +282,8 @@ def train_general(
 ) -> GeneralTrainer:
     """Train (or continue) a general run in ``out_dir``, locked meanwhile, as
     :func:`~cpp_mujoco.agent.training_run.train` does for one map; returns the trainer."""
+    init = initial_general_weights(config)  # a bad file fails before the folder is claimed
     return run_in_folder(
-        lambda out: GeneralTrainer(config, out), out_dir,
+        lambda out: GeneralTrainer(config, out, init), out_dir,
         resume=resume, overwrite=overwrite, progress=progress,
     )  # fmt: skip

@@ -22,6 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.maps import MAX_SIDE, GridMap
 
@@ -33,36 +34,53 @@ CACHE_MAPS = 2048
 
 
 @lru_cache(maxsize=CACHE_MAPS)
-def _field(cells: bytes, shape: tuple[int, int, int]) -> np.ndarray:
+def _tables(cells: bytes, shape: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """(moves home per cell, (H·W, 5) actions home after each action) of one map's cells."""
     landing, target, nfz = np.frombuffer(cells, dtype=bool).reshape(shape)
     h, w = shape[1:]
     if not landing.any():
-        out = np.full(h * w, NO_WAY_HOME, dtype=np.int32)
+        field = np.full(h * w, NO_WAY_HOME, dtype=np.int32)
+        after = np.full((h * w, NUM_ACTIONS), NO_WAY_HOME + 1, dtype=np.int32)
     else:  # targets do not change a move (GridMap wants one); a landing cell is never no-fly
         grid_map = GridMap(
             landing=landing, target=target if target.any() else landing, nfz=nfz & ~landing,
             name="observed",
         )  # fmt: skip
-        out = np.minimum(build_graph(grid_map).home - 1, NO_WAY_HOME).astype(np.int32)
-    out.flags.writeable = False
-    return out
+        graph = build_graph(grid_map)
+        field = np.minimum(graph.home - 1, NO_WAY_HOME).astype(np.int32)
+        after = np.minimum(graph.home_after, NO_WAY_HOME + 1).astype(np.int32)
+    field.flags.writeable = after.flags.writeable = False
+    return field, after
+
+
+def _map_cells(layers: np.ndarray) -> np.ndarray:
+    cells = np.ascontiguousarray(np.asarray(layers) != 0)
+    if cells.ndim != 3 or cells.shape[0] != 3:
+        raise ValueError(f"a map is (3, H, W) layers, got shape {cells.shape}")
+    return cells
 
 
 def home_field(layers: np.ndarray) -> np.ndarray:
     """(H·W,) int32, read-only: fewest accepted moves from each cell of a (3,H,W) map (landing,
     target, no-fly; any dtype, nonzero = set) to its nearest landing cell — 0 on one,
     :data:`NO_WAY_HOME` where there is no way. Cached by the map's cells."""
-    cells = np.ascontiguousarray(np.asarray(layers) != 0)
-    if cells.ndim != 3 or cells.shape[0] != 3:
-        raise ValueError(f"a map is (3, H, W) layers, got shape {cells.shape}")
-    return _field(cells.tobytes(), cells.shape)
+    cells = _map_cells(layers)
+    return _tables(cells.tobytes(), cells.shape)[0]
+
+
+def home_after(layers: np.ndarray) -> np.ndarray:
+    """(H·W, 5) int32, read-only: :attr:`MapGraph.home_after <cpp_mujoco.grid.graph.MapGraph.
+    home_after>` of a (3,H,W) map — the actions still needed to be landed after each action in
+    each cell — capped above :data:`NO_WAY_HOME`. Cached with :func:`home_field`."""
+    cells = _map_cells(layers)
+    return _tables(cells.tobytes(), cells.shape)[1]
 
 
 def moves_home(maps: np.ndarray, position: np.ndarray) -> np.ndarray:
     """(N,) int32: each state's moves home. ``maps``: one (3,H,W) map shared by the batch or
     (N,3,H,W), one per row; ``position``: the (N,H,W) one-hot UAV cells of an observation.
 
-    One cached field per distinct map (:func:`_field`'s cache), then a gather: the per-row
+    One cached field per distinct map (:func:`_tables`' cache), then a gather: the per-row
     work is a cache lookup of the row's map, never a loop over cells."""
     position = np.asarray(position)
     n = position.shape[0]
@@ -77,6 +95,32 @@ def moves_home(maps: np.ndarray, position: np.ndarray) -> np.ndarray:
     cells = np.ascontiguousarray(maps != 0)
     shape = cells.shape[1:]
     return np.array(
-        [_field(layers.tobytes(), shape)[c] for layers, c in zip(cells, cell, strict=True)],
+        [_tables(layers.tobytes(), shape)[0][c] for layers, c in zip(cells, cell, strict=True)],
         dtype=np.int32,
     )
+
+
+def safe_actions(maps: np.ndarray, position: np.ndarray, budget: np.ndarray) -> np.ndarray:
+    """(N, 5) bool: the return rule (:meth:`MapGraph.safe_actions <cpp_mujoco.grid.graph.
+    MapGraph.safe_actions>`) for a batch of observations — ``maps`` one (3,H,W) map shared by the
+    batch or (N,3,H,W) per row, ``position`` the (N,H,W) one-hot cells, ``budget`` (N,) or (N,1)
+    the remaining budget. One cached table per distinct map, then a gather."""
+    position = np.asarray(position)
+    n = position.shape[0]
+    cell = position.reshape(n, int(np.prod(position.shape[1:]))).argmax(axis=1)
+    maps = np.asarray(maps)
+    if maps.ndim == 4 and n and maps.strides[0] == 0:  # GridMDP's broadcast view of one map
+        maps = maps[0]
+    if maps.ndim == 3:
+        after = home_after(maps)[cell]
+    else:
+        if maps.shape[0] != n:
+            raise ValueError(f"{maps.shape[0]} maps for {n} positions")
+        cells = np.ascontiguousarray(maps != 0)
+        keys = cells.reshape(n, -1)
+        after = np.empty((n, NUM_ACTIONS), dtype=np.int32)
+        _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+        for k, row in enumerate(first):  # one table per distinct map, not per row
+            rows = np.flatnonzero(inverse.reshape(-1) == k)
+            after[rows] = _tables(cells[row].tobytes(), cells.shape[1:])[1][cell[rows]]
+    return after <= np.asarray(budget).reshape(n, 1) - 1

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cpp_mujoco.agent.home_input import home_field
+from cpp_mujoco.agent.home_input import home_after, home_field
 from cpp_mujoco.agent.network import NFZ_CHANNEL
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.map_generator import generate_from_seed
@@ -43,6 +43,8 @@ class MapPool:
     layers: np.ndarray
     # each map's moves home per padded cell, filled on first use (:meth:`moves_home`; −1: not yet)
     _home: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
+    # and its actions home after each action per padded cell (:meth:`safe_actions`)
+    _after: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def generate(cls, sizes: tuple[int, ...], per_size: int, first_seed: int) -> MapPool:
@@ -99,6 +101,17 @@ class MapPool:
         for m in np.unique(map_index[self._home[map_index, 0] < 0]):  # maps, not cells
             self._home[m] = home_field(self.layers[m])
         return self._home[map_index, np.asarray(position).reshape(-1)]
+
+    def safe_actions(self, map_index: np.ndarray, position: np.ndarray, budget) -> np.ndarray:
+        """(b, 5) bool: the return rule (:func:`~cpp_mujoco.agent.home_input.safe_actions`) for
+        stored states — map by index, flat padded cell, remaining budget."""
+        if self._after is None:
+            self._after = np.full((len(self), self.side * self.side, 5), -1, dtype=np.int32)
+        map_index = np.asarray(map_index).reshape(-1)
+        for m in np.unique(map_index[self._after[map_index, 0, 0] < 0]):
+            self._after[m] = home_after(self.layers[m])
+        after = self._after[map_index, np.asarray(position).reshape(-1)]
+        return after <= np.asarray(budget).reshape(-1, 1) - 1
 
     def grids(self, map_index: np.ndarray, coverage_bits: np.ndarray, position: np.ndarray):
         """(b,5,side,side) float32 network input of stored states: the map's layers, the

@@ -53,11 +53,14 @@ class MultiMapReplay(ReplayBuffer):
         self.coverage[t] = np.packbits(np.asarray(obs["coverage"]).reshape(n, -1) != 0, axis=-1)
 
     def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, ...]:
-        """As :meth:`ReplayBuffer._state`, each row on its own map (moves home by map index)."""
+        """As :meth:`ReplayBuffer._state`, each row on its own map (moves home and safe actions by
+        map index)."""
         index, position = self.map_index[t, e], self.position[t, e]
         grid = self.pool.grids(index, self.coverage[t, e], position)
         home = self.pool.moves_home(index, position)
-        return grid, self.budget[t, e][:, None], self.wind[t, e], home
+        budget = self.budget[t, e][:, None]
+        safe = self.pool.safe_actions(index, position, budget)
+        return grid, budget, self.wind[t, e], home, safe
 
     ARRAYS = ("map_index", "coverage", "position", "budget", "wind", "action", "reward",
               "terminated")  # fmt: skip
@@ -102,7 +105,8 @@ class PooledDemonstrations:
         index, position = self.map_index[i], self.position[i]
         grid = self.pool.grids(index, self.coverage[i], position)
         home = self.pool.moves_home(index, position)
-        return grid, self.budget[i][:, None], self.wind[i], home
+        safe = self.pool.safe_actions(index, position, self.budget[i])
+        return grid, self.budget[i][:, None], self.wind[i], home, safe
 
     def sample(self, batch_size: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """Uniformly drawn transitions in :meth:`ReplayBuffer.transitions`' layout."""

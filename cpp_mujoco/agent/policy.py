@@ -1,12 +1,16 @@
-"""A trained agent as a policy: greedy π(s) = argmax_a Q(s, a), for one observation or a batch."""
+"""A trained agent as a policy: greedy π(s) = argmax_a Q(s, a), for one observation or a batch;
+an agent trained with the return mask takes the argmax over the actions that keep its way home
+paid (:func:`~cpp_mujoco.agent.home_input.safe_actions`), as it was trained to."""
 
 from __future__ import annotations
 
 import numpy as np
 import torch
 
+from cpp_mujoco.agent.ddqn import mask_unsafe
 from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_network import GeneralQNetwork
+from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.policy import as_batch
 
@@ -19,7 +23,8 @@ class MapSizeError(ValueError):
 
 class GreedyAgent:
     """``act(obs)``: one observation dict (``coverage`` of shape (H, W)) → int; a batch (leading
-    dim N) → np.ndarray of N ints. ``network`` is the torch Q-network."""
+    dim N) → np.ndarray of N ints. ``network`` is the torch Q-network; ``return_mask``: act only
+    among the return rule's safe actions (agents trained with it)."""
 
     def __init__(
         self,
@@ -28,8 +33,10 @@ class GreedyAgent:
         device: str | torch.device = "cpu",
         name: str = "ddqn",
         metadata: dict | None = None,
+        return_mask: bool = False,
     ):
         self.network = network.to(device).eval()
+        self.return_mask = bool(return_mask)
         self.budget_scale = float(budget_scale)
         self.device = torch.device(device)
         self.name = name
@@ -73,7 +80,12 @@ class GreedyAgent:
         single = np.ndim(obs["coverage"]) == 2
         if single:
             obs = as_batch(obs)
-        actions = self.q_values(obs).argmax(axis=1)
+        q = torch.from_numpy(self.q_values(obs))
+        if self.return_mask:
+            q = mask_unsafe(
+                q, torch.from_numpy(safe_actions(obs["map"], obs["position"], obs["budget"]))
+            )
+        actions = q.argmax(dim=1).numpy()
         return int(actions[0]) if single else actions
 
     __call__ = act

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from cpp_mujoco.agent.home_input import home_field
+from cpp_mujoco.agent.home_input import home_after, home_field
 
 
 class ReplayBuffer:
@@ -28,6 +28,7 @@ class ReplayBuffer:
         self.n_step, self.gamma = n_step, gamma
         self.map_layers = np.asarray(map_layers, dtype=np.float32)  # (3, H, W)
         self.home = home_field(self.map_layers)  # (H·W,) moves home from each cell
+        self.after = home_after(self.map_layers)  # (H·W, 5) actions home after each action
         h, w = self.map_layers.shape[1:]
         self.height, self.width = h, w
         r, n = self.rows, num_envs
@@ -106,8 +107,10 @@ class ReplayBuffer:
         }
 
     def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, ...]:
-        """(grid (b,5,H,W), budget (b,1), wind (b,2), moves home (b,)) of rows ``t`` of envs
-        ``e``: what :func:`~cpp_mujoco.agent.network.scalar_inputs` reads besides the grid."""
+        """(grid (b,5,H,W), budget (b,1), wind (b,2), moves home (b,), safe actions (b,5)) of
+        rows ``t`` of envs ``e``: what :func:`~cpp_mujoco.agent.network.scalar_inputs` reads
+        besides the grid, and the return rule's actions (:func:`~cpp_mujoco.agent.home_input.
+        safe_actions`) for a masked target."""
         b = t.size
         hw = self.height * self.width
         grid = np.empty((b, 5, self.height, self.width), dtype=np.float32)
@@ -117,7 +120,9 @@ class ReplayBuffer:
         pos[np.arange(b), self.position[t, e]] = 1.0
         grid[:, 4] = pos.reshape(b, self.height, self.width)
         home = self.home[self.position[t, e]]
-        return grid, self.budget[t, e][:, None], self.wind[t, e], home
+        budget = self.budget[t, e][:, None]
+        safe = self.after[self.position[t, e]] <= budget - 1
+        return grid, budget, self.wind[t, e], home, safe
 
     # ------------------------------------------------------------------ checkpointing
     def state_dict(self) -> dict:

@@ -33,8 +33,9 @@ from cpp_mujoco.agent.checkpoint import (
     training_state,
 )
 from cpp_mujoco.agent.config import TrainConfig
-from cpp_mujoco.agent.ddqn import ddqn_update, softmax_actions
+from cpp_mujoco.agent.ddqn import ddqn_update, mask_unsafe, softmax_actions
 from cpp_mujoco.agent.demonstrations import record_demonstrations
+from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors, scalar_inputs
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.replay import ReplayBuffer, concatenate_batches
@@ -116,6 +117,9 @@ class Trainer:
         )
         with torch.no_grad():
             q = self.online(grid, scalars).cpu()
+        if c.return_mask:  # the soft-max samples among the actions that keep the way home paid
+            o = self.obs
+            q = mask_unsafe(q, torch.from_numpy(safe_actions(o["map"], o["position"], o["budget"])))
         actions = softmax_actions(q, c.beta, self.torch_gen).numpy()
         guided = self.guided_envs()
         if guided:
@@ -158,9 +162,10 @@ class Trainer:
             demo[-n_demo:] = True
         d = self.device
         scale, wind = c.input_budget_scale, self.online.wind_inputs
-        (g, b, wd, h), (ng, nb, nwd, nh) = s["obs"], s["next_obs"]
+        (g, b, wd, h, _), (ng, nb, nwd, nh, next_safe) = s["obs"], s["next_obs"]
         if not self.online.home_input:
             h = nh = None
+        masked = {"next_safe": torch.from_numpy(next_safe).to(d)} if c.return_mask else {}
         return {  # "budget" holds the network's scalar inputs: the budget (, wind, moves home)
             "grid": torch.from_numpy(g).to(d),
             "budget": torch.from_numpy(scalar_inputs(b, wd, scale, wind, h)).to(d),
@@ -170,15 +175,11 @@ class Trainer:
             "next_budget": torch.from_numpy(scalar_inputs(nb, nwd, scale, wind, nh)).to(d),
             "discount": torch.from_numpy(s["discount"]).to(d),
             "demo": torch.from_numpy(demo).to(d),
+            **masked,
         }
 
     def learning_rate(self) -> float:
-        """Linear warm-up over ``lr_warmup_updates``, then cosine decay to ``lr_final``·lr."""
-        c = self.config
-        warmup = min(1.0, (self.updates + 1) / c.lr_warmup_updates) if c.lr_warmup_updates else 1.0
-        progress = min(1.0, self.updates / max(c.total_updates, 1))
-        decay = c.lr_final + (1.0 - c.lr_final) * 0.5 * (1.0 + np.cos(np.pi * progress))
-        return c.learning_rate * warmup * float(decay)
+        return self.config.learning_rate_at(self.updates)
 
     def update(self) -> None:
         c = self.config
@@ -209,6 +210,7 @@ class Trainer:
             self.config.input_budget_scale,
             self.device,
             name=f"ddqn-{self.grid_map.label}",
+            return_mask=self.config.return_mask,
         )
 
     def evaluate(self, full: bool = False) -> EvaluationResult:

@@ -142,6 +142,26 @@ class MapGraph:
         return self.distances.pairs(src, dst)
 
     @cached_property
+    def home_after(self) -> np.ndarray:
+        """(H·W, 5): actions still needed to be landed after taking action a in cell p — 0 if it
+        lands, else ``home`` of the cell it leads to (a rejected action hovers: p's own)."""
+        after = self.home[self.safety.next_cell]
+        after[self.safety.lands] = 0
+        after.flags.writeable = False
+        return after
+
+    def safe_actions(self, cells, budget) -> np.ndarray:
+        """(N, 5) bool: the actions after which the way home is still paid — the remaining
+        budget after the action (every action costs one unit) covers :attr:`home_after`.
+
+        The return rule of the safe greedy planner (its invariant ``budget >= home[p]``) as an
+        action set: in a state that keeps the invariant some action is always safe (the land on
+        a landing cell, else the move one step nearer home), so a policy choosing only among
+        these lands every calm-air episode."""
+        budget = np.asarray(budget).reshape(-1, 1)
+        return self.home_after[np.asarray(cells).reshape(-1)] <= budget - 1
+
+    @cached_property
     def toward_targets(self) -> np.ndarray:
         """(H·W,): fewest moves to a cell from which some target cell is seen."""
         return _distance_to_any(self.adjacency, np.flatnonzero(self.fov_targets.any(axis=1)))
