@@ -23,7 +23,7 @@ from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.protocol import ENGINES  # what carries MuJoCo episodes
-from cpp_mujoco.policy import Policy, as_policy
+from cpp_mujoco.policy import Policy, as_policy, policy_identity
 from cpp_mujoco.policy import policy_name as policy_label
 
 PAPER_LANDING_RATIO = {"A": 0.9937, "B": 0.9978, "C": 0.9826}
@@ -221,6 +221,8 @@ def evaluate(
     name = policy_name or policy_label(policy)
     bounds = coverage_upper_bounds(grid_map, budget_per_episode, config.fov_side)
     conditions = _conditions(backend, budget_per_episode, config, physics_kwargs)
+    if identity := policy_identity(policy):
+        conditions["policy"] = identity
     if backend == "mujoco":
         outcome = _run_physics(
             policy, grid_map, starts, budget_per_episode, config, physics_kwargs, workers,

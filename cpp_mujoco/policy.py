@@ -137,3 +137,14 @@ def as_policy(obj: Any) -> Any:
 def policy_name(policy: object) -> str:
     """How results name a policy: its ``name`` attribute, else its class name."""
     return str(getattr(policy, "name", type(policy).__name__))
+
+
+def policy_identity(policy: object) -> dict[str, Any]:
+    """What results record of a trained agent beyond its name (empty for a planner): the file
+    it was loaded from and its digest, its network, and whether it acts with the return mask
+    — two files of one name, or one file with and without the mask, never read alike."""
+    meta = getattr(policy, "metadata", None) or {}
+    out = {k: meta[k] for k in ("source", "digest", "bundled", "architecture") if k in meta}
+    if hasattr(policy, "return_mask"):
+        out["return_mask"] = bool(policy.return_mask)
+    return out

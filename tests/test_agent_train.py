@@ -197,3 +197,25 @@ def test_the_crash_reward_is_what_a_training_crash_pays(tmp_path):
     for bad in (float("nan"), 10.0):
         with pytest.raises(ValueError, match="crash_reward"):
             TrainConfig(crash_reward=bad)
+
+
+def test_a_first_stage_stops_at_its_update_on_the_whole_runs_schedule(tmp_path):
+    """``stop_after_updates`` ends the run there, with the learning rate and the guide where
+    ``total_updates``' schedule has them, and a resume may carry the run on to the end."""
+    base = dict(
+        map="C", num_envs=8, batch_size=16, learning_starts=100, lr_warmup_updates=0,
+        eval_every=10**9, checkpoint_every=10**9, final_eval=False, threads=1, demo_fraction=0.0,
+        guide_updates=40,
+    )  # fmt: skip
+    first = Trainer(TrainConfig(total_updates=40, stop_after_updates=10, **base), tmp_path)
+    first.run(progress=False)
+    assert first.updates == 10
+    whole = TrainConfig(total_updates=40, **base)
+    assert first.learning_rate() == whole.learning_rate_at(10) < whole.learning_rate
+    assert first.guided_envs() == round(0.5 * 0.75 * 8)
+    again = Trainer(whole, tmp_path)
+    assert again.resume() and again.updates == 10
+    again.run(progress=False)
+    assert again.updates == 40
+    with pytest.raises(ValueError, match="stop_after_updates"):
+        TrainConfig(stop_after_updates=float("nan"))

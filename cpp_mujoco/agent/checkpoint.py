@@ -250,7 +250,7 @@ def agent_payload(
 # settings a resumed run may change: they schedule the run, not what it learns
 RESUMABLE_CHANGES = frozenset(
     {"total_updates", "max_minutes", "eval_every", "eval_budget_step", "final_eval",
-     "checkpoint_every", "checkpoint_minutes", "device", "threads"}
+     "checkpoint_every", "checkpoint_minutes", "device", "threads", "stop_after_updates"}
 )  # fmt: skip
 
 
@@ -356,3 +356,10 @@ def check_resumable(path: Path, state: dict, config: TrainConfig, grid_map: Grid
         raise CheckpointError(
             f"{path}: resume with the run's own settings; these differ: {'; '.join(changed)}"
         )
+
+
+def initial_network(config: TrainConfig) -> QNetwork:
+    """The network of the agent ``config.init_from`` names (bundled name or file)."""
+    from cpp_mujoco.agent import load_agent  # the package imports this module
+
+    return load_agent(config.init_from).network

@@ -42,6 +42,8 @@ _HELP = {
     "crash_reward": "the MDP's crash reward while training (the paper's: −150); evaluation"
     " reports landing and coverage, which do not depend on it",
     "init_from": "start from this agent's weights (bundled name or file; empty = random)",
+    "stop_after_updates": "end the run at this many updates, keeping the schedules of"
+    " --total-updates (0 = at --total-updates): a staged run's first stage",
     "return_mask": "act only among the actions after which the way home is still paid (the safe"
     " greedy planner's return rule): every calm grid episode lands; off = the paper's agent",
     "backend": "where the training episodes are flown: grid (the MDP) or mujoco (fine-tuning in"

@@ -103,6 +103,9 @@ class TrainConfig:
     learning_starts: int = 2_000  # env steps collected before the first update
     total_updates: int = 26_000  # training length in gradient updates (≈ 18 min on 2 cores)
     max_minutes: float = 0.0  # stop after this wall-clock time (0 = no limit)
+    # end the run at this many updates, keeping the learning-rate and guide schedules of
+    # total_updates (0 = at total_updates): the first stage of a staged run, reproducibly
+    stop_after_updates: int = 0
     # --- bookkeeping -------------------------------------------------------------------------
     eval_every: int = 1_000  # greedy evaluation every so many updates (all landing cells × …)
     eval_budget_step: int = 1  # … budgets min, min+step, …, max. 1 = the full §7 protocol, on
@@ -146,6 +149,7 @@ class TrainConfig:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in (
             "max_minutes", "checkpoint_minutes", "budget_scale", "threads", "learning_starts",
+            "stop_after_updates",
             "guide_fraction", "updates_per_step", "wind_max_speed", "wind_planner_sigmas",
         ):  # fmt: skip
             if not 0 <= getattr(self, name) < float("inf"):  # NaN fails too
@@ -268,6 +272,11 @@ class TrainConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    @property
+    def last_update(self) -> int:
+        """The update the run ends at: ``stop_after_updates`` if set, else ``total_updates``."""
+        return min(self.stop_after_updates or self.total_updates, self.total_updates)
 
     def learning_rate_at(self, updates: int) -> float:
         """Linear warm-up over ``lr_warmup_updates``, then cosine decay to ``lr_final``·lr."""

@@ -28,6 +28,7 @@ from cpp_mujoco.agent.checkpoint import (
     agent_payload,
     atomic_save,
     check_resumable,
+    initial_network,
     load_checkpoint,
     restore_training_state,
     training_state,
@@ -337,7 +338,7 @@ class Trainer:
     def _finished(self) -> bool:
         c = self.config
         out_of_time = bool(c.max_minutes) and self.wall_s >= c.max_minutes * 60
-        return self.updates >= c.total_updates or out_of_time
+        return self.updates >= c.last_update or out_of_time
 
     def _clock(self) -> None:
         t0, wall0 = self._start
@@ -346,11 +347,11 @@ class Trainer:
     def _drain(self, stop: StopSignals) -> None:
         """The updates the collected steps earned, each followed by its evaluation/checkpoint."""
         c = self.config
-        while self.update_credit >= 1.0 and self.updates < c.total_updates and not stop.received:
+        while self.update_credit >= 1.0 and self.updates < c.last_update and not stop.received:
             self.update_credit -= 1.0
             self.update()
             self._bar.update(1)
-            if self.updates % c.eval_every == 0 or self.updates == c.total_updates:
+            if self.updates % c.eval_every == 0 or self.updates == c.last_update:
                 self._clock()
                 self._evaluate_and_log()
             if self.updates % c.checkpoint_every == 0:
@@ -390,10 +391,3 @@ class Trainer:
                 thr=torch.get_num_threads(),
                 refresh=False,
             )
-
-
-def initial_network(config: TrainConfig) -> QNetwork:
-    """The network of the agent ``config.init_from`` names (bundled name or file)."""
-    from cpp_mujoco.agent import load_agent  # the package imports this module
-
-    return load_agent(config.init_from).network

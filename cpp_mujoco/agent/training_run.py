@@ -9,10 +9,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
+from cpp_mujoco.agent.checkpoint import initial_network
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import check_can_start_from
 from cpp_mujoco.agent.run_folder import claim_run_folder
-from cpp_mujoco.agent.train import Trainer, initial_network
+from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.maps import load_map
 
 T = TypeVar("T", bound=Trainer)
