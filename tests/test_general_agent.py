@@ -266,11 +266,6 @@ def test_bad_general_checkpoints_are_clear_errors(trained, tmp_path):
             load_agent(path)
 
 
-def test_bundled_general_agent_missing_is_explained():
-    with pytest.raises(CheckpointError, match="no general agent is bundled yet.*train-general"):
-        load_agent("general")
-
-
 def test_cli_builds_the_general_config():
     from cpp_mujoco.cli import build_parser
 

@@ -247,6 +247,6 @@ def test_the_mask_is_refused_where_moves_cost_more():
     with pytest.raises(ValueError, match="return_mask"):
         TrainConfig(return_mask=True, wind_max_speed=12.0)
     with pytest.raises(ValueError, match="return_mask"):
-        TrainConfig(return_mask=True, backend="mujoco", init_from="A")
+        TrainConfig(return_mask=True, backend="mujoco", init_from="A", physics_wind_speed=0.0)
     assert not TrainConfig().return_mask and GeneralTrainConfig().return_mask
     assert not GeneralTrainConfig.from_dict({}).return_mask  # a run from before the option

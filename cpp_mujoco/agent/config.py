@@ -161,13 +161,13 @@ class TrainConfig:
                 "wind_planner_sigmas sets the wind planners' margin: it needs guide or "
                 "demo_planner safe-greedy-wind or beam-search-wind"
             )
+        self.wind  # noqa: B018 - GridWind checks the wind options now, before any run folder
+        self._check_backend()
         if self.return_mask and (self.wind_max_speed or self.backend != "grid"):
             raise ValueError(
                 "return_mask counts moves, as in calm grid air; in wind or physics a move costs "
                 "more (use the wind planners as teachers, or the return guard)"
             )
-        self.wind  # noqa: B018 - GridWind checks the wind options now, before any run folder
-        self._check_backend()
 
     def _check_backend(self) -> None:
         if self.backend not in BACKENDS:
