@@ -18,6 +18,7 @@ from cpp_mujoco.review.map_set_figures import (
     MapSetFigureOptions,
     coverage_plot,
     load_map_set_result,
+    merge_map_set_results,
     policy_label,
     trajectories_plot,
     write_map_set_figures,
@@ -189,3 +190,30 @@ def test_a_set_the_physics_cannot_build_fails_before_flying(monkeypatch):
     planner = [("safe-greedy", make_planner("safe-greedy"))]
     with pytest.raises(ValueError, match=r"'probe16-v1' \(16x16\) cannot be flown in MuJoCo"):
         evaluate_map_set(probe, maps, planner, budget_step=50, backend="mujoco")
+
+
+def test_runs_of_one_set_merge_into_one_result_and_figure(result_json, tmp_path):
+    """The planners flown here and an agent flown elsewhere, drawn as one: every policy's
+    rows, each row keeping its run's conditions; other budgets or a policy twice are refused."""
+    spec = map_set_spec("heldout16-v1")
+    maps = load_map_set(spec.name, first=3)
+    later = evaluate_map_set(spec, maps, [("beam-search", make_planner("beam-search"))], 50)
+    later_json = later.to_json(tmp_path / "beam.json")
+    script_spec = importlib.util.spec_from_file_location("msf", ROOT / "scripts/map_set_figures.py")
+    script = importlib.util.module_from_spec(script_spec)
+    script_spec.loader.exec_module(script)
+    args = [str(result_json), str(later_json), "--merge", "--out", str(tmp_path / "m")]
+    assert script.main([*args, "--count", "1"]) == 0
+    stem = f"{result_json.stem}+beam"
+    merged = load_map_set_result(tmp_path / "m" / f"{stem}.json")
+    assert [p["policy"] for p in merged["policies"]] == [*POLICIES, "beam-search"]
+    assert len(merged["rows"]) == 9 and all("backend" in r["conditions"] for r in merged["rows"])
+    names = {p.name for p in (tmp_path / "m").iterdir()}
+    assert {f"{stem}_coverage.png", f"{stem}_trajectories.png"} <= names
+    _not_blank(tmp_path / "m" / f"{stem}_coverage.png")
+    data = load_map_set_result(result_json)
+    with pytest.raises(ValueError, match="two of the results"):
+        merge_map_set_results([data, load_map_set_result(later_json), data])
+    other = evaluate_map_set(spec, maps, [("beam-search", make_planner("beam-search"))], 25)
+    with pytest.raises(ValueError, match="cannot merge"):
+        merge_map_set_results([data, json.loads(json.dumps(other.to_dict()))])

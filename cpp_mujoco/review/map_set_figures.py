@@ -51,6 +51,32 @@ def load_map_set_result(path: str | os.PathLike) -> dict:
     return data
 
 
+def merge_map_set_results(results: Sequence[dict]) -> dict:
+    """Results of one set flown in separate runs (the planners here, an agent later or on
+    another machine) as one: they must name the same set, maps (by digest), backend and budgets,
+    and no policy twice. Each row keeps all of its conditions (its run's shared ones included)."""
+    first = results[0]
+    key = ("map_set", "backend", "budgets")
+    maps = [(r["map"], r["map_digest"]) for r in first["rows"]]
+    rows, summaries = [], []
+    for data in results:
+        if any(data[k] != first[k] for k in key):
+            raise ValueError(
+                f"cannot merge results of {set_label(data)}, {run_label(data)} with "
+                f"{set_label(first)}, {run_label(first)}"
+            )
+        for name in policies(data):
+            own = [(r["map"], r["map_digest"]) for r in data["rows"] if r["policy"] == name]
+            if sorted(own) != sorted(set(maps)):
+                raise ValueError(f"policy {name!r} flew other maps than the first result's")
+            if any(name == r["policy"] for r in rows):
+                raise ValueError(f"policy {name!r} is in two of the results")
+        shared = data.get("conditions") or {}
+        rows += [{**r, "conditions": {**shared, **r.get("conditions", {})}} for r in data["rows"]]
+        summaries += data.get("policies", [])
+    return {**first, "policies": summaries, "conditions": {}, "rows": rows}
+
+
 def policies(data: dict) -> list[str]:
     return list(dict.fromkeys(r["policy"] for r in data["rows"]))
 
