@@ -7,8 +7,7 @@ Stage 1 (:data:`STAGES`, ``OUT/stage1``) learns to fly generated 16×16 and 32×
 the return mask, guided by the safe greedy planner and taught by beam-search demonstrations: the
 first 25,000 updates of a 200,000-update schedule. Stage 2 (``OUT/general``) starts from its
 ``agent.pt`` with the return mask on (every calm episode lands; the network learns where to fly)
-and beam-search demonstrations on 128 maps of each size; its ``best.pt`` (chosen on the
-validation maps) is the agent. ``--install`` copies it to ``cpp_mujoco/agent/bundled/general.pt``
+for 36,000 updates; its ``best.pt`` (chosen on the validation maps) is the agent. ``--install`` copies it to ``cpp_mujoco/agent/bundled/general.pt``
 (weights + metadata only). Run again, the script resumes a stage whose folder holds a
 ``checkpoint.pt`` and skips a finished one (docs/agent.md, "One agent for any map").
 """
@@ -35,14 +34,14 @@ STAGES = [  # (folder, train-general options)
     ]),
     ("general", [
         "--init-from", "{stage1}/agent.pt", "--guide-updates", "200000",
-        "--total-updates", "36000", "--eval-every", "4000", "--demo-maps-per-size", "128",
+        "--total-updates", "36000", "--eval-every", "4000",
     ]),
 ]  # fmt: skip
 
 
 def stage_commands(out: Path, extra: list[str]) -> list[tuple[Path, list[str]]]:
     """(folder, ``cpp-mujoco`` argv) of each stage in ``out``, in order."""
-    names = {"stage1": str(out / "stage1")}
+    names = {folder: str(out / folder) for folder, _ in STAGES}
     runs = []
     for folder, options in STAGES:
         argv = ["train-general", "--out", str(out / folder), "--threads", "1", "--no-progress"]
