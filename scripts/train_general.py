@@ -6,10 +6,11 @@ two stages, and check it on its validation maps.
 Stage 1 (:data:`STAGES`, ``OUT/stage1``) learns to fly generated 16×16 and 32×32 maps without
 the return mask, guided by the safe greedy planner and taught by beam-search demonstrations: the
 first 25,000 updates of a 200,000-update schedule. Stage 2 (``OUT/general``) starts from its
-``agent.pt`` with the return mask on (every calm episode lands; the network learns where to fly)
-for 36,000 updates; its ``best.pt`` (chosen on the validation maps) is the agent. ``--install`` copies it to ``cpp_mujoco/agent/bundled/general.pt``
-(weights + metadata only). Run again, the script resumes a stage whose folder holds a
-``checkpoint.pt`` and skips a finished one (docs/agent.md, "One agent for any map").
+``agent.pt`` with the return mask on (every calm episode lands; the network learns where to
+fly) for 36,000 updates; its ``best.pt`` (chosen on the validation maps) is the agent.
+``--install`` copies it to ``cpp_mujoco/agent/bundled/general.pt`` (weights + metadata only).
+Run again, the script resumes a stage whose folder holds a ``checkpoint.pt`` and skips a
+finished one (docs/agent.md, "One agent for any map").
 """
 
 from __future__ import annotations

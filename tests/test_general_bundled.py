@@ -54,8 +54,8 @@ def test_it_loads_by_name_and_acts_on_both_sizes(agent):
 def test_it_flies_an_unseen_map_home_and_covers(agent, size):
     """The first map of each held-out set, every 10th budget of its size class: every episode
     lands, and it covers far more than the random policy and at least 70 % of what the safe
-    greedy planner covers (measured: 16×16 90.5 % against 91.1 %; 32×32 37.1 % against 51.3 %, one of the maps
-    where it leaves a region unvisited — docs/agent.md)."""
+    greedy planner covers (measured: 16×16 90.5 % against 91.1 %; 32×32 37.1 % against
+    51.3 %, one of the maps where it leaves a region unvisited — docs/agent.md)."""
     grid_map, config = load_map_set(f"heldout{size}-v1", first=1)[0], size_config(size)
     budgets = protocol_budgets(config, 10)
     ours = evaluate(agent, grid_map, budgets=budgets, config=config)
