@@ -3,8 +3,8 @@
 ``load_agent("A")`` loads the bundled agent for map A; ``load_agent(path)`` any agent or training
 checkpoint — a per-map agent or a general one (:mod:`cpp_mujoco.agent.general_network`, trained by
 ``cpp-mujoco train-general`` on generated maps, flies maps of any size); ``load_agent("general")``
-the bundled general agent, once there is one. The result acts greedily: ``agent.act(obs) -> int``
-for one observation, ``np.ndarray`` for a batch.
+the bundled general agent (``scripts/train_general.py``; it acts with the return mask). The result
+acts greedily: ``agent.act(obs) -> int`` for one observation, ``np.ndarray`` for a batch.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from cpp_mujoco.agent.policy import GreedyAgent, MapSizeError
 from cpp_mujoco.io import resolve_named_file
 
 BUNDLED_DIR = Path(__file__).resolve().parent / "bundled"
-GENERAL_AGENT = "general"  # bundled/general.pt: the general agent, once one is trained
+GENERAL_AGENT = "general"  # bundled/general.pt: the general agent (scripts/train_general.py)
 
 
 def bundled_agents() -> list[str]:
