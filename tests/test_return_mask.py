@@ -2,8 +2,6 @@
 same from an observation as from the map's graph and the replay; a masked policy lands every
 calm episode (an untrained network included) and training never takes an unsafe action."""
 
-from collections import deque
-
 import numpy as np
 import pytest
 import torch
@@ -27,6 +25,7 @@ from cpp_mujoco.map_generator import generate_from_seed
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.size_classes import size_config
+from tests.test_home_input import _bfs_moves_home
 
 SMALL_NET = dict(local_size=9, global_size=11, conv_filters=8, hidden=64, num_hidden=2)
 
@@ -37,21 +36,10 @@ def _one_thread(one_thread):
 
 
 def _reference_home(grid_map) -> np.ndarray:
-    """Actions to be landed from each cell (moves to a landing cell + the land), breadth-first
-    over 4-neighbour moves into cells that are on the map and not no-fly; -1: no way."""
-    h, w = grid_map.shape
-    dist = np.full((h, w), -1)
-    queue = deque()
-    for r, c in zip(*np.nonzero(grid_map.landing), strict=True):
-        dist[r, c] = 1
-        queue.append((r, c))
-    while queue:
-        r, c = queue.popleft()
-        for rr, cc in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
-            if 0 <= rr < h and 0 <= cc < w and not grid_map.nfz[rr, cc] and dist[rr, cc] < 0:
-                dist[rr, cc] = dist[r, c] + 1
-                queue.append((rr, cc))
-    return dist
+    """Actions to be landed from each cell (breadth-first moves to a landing cell + the land);
+    -1: no way."""
+    moves = _bfs_moves_home(grid_map)
+    return np.where(moves >= 0, moves + 1, -1)
 
 
 @pytest.mark.parametrize("name", ["A", "C"])
@@ -207,7 +195,7 @@ def test_training_takes_only_safe_actions_and_masks_its_targets(masked_run):
     assert trainer.config.return_mask
     replay, n = trainer.replay, trainer.replay.pos
     t, e = np.divmod(np.arange(n * replay.num_envs), replay.num_envs)
-    safe = replay._state(t, e)[4]
+    safe = replay._safe(t, e)
     assert np.array_equal(
         safe, trainer.pool.safe_actions(replay.map_index[t, e], replay.position[t, e],
                                         replay.budget[t, e])

@@ -213,12 +213,12 @@ class GeneralTrainer(Trainer):
         if not path.exists():
             return False
         state = load_checkpoint(path)
-        self._keep_stored_home_input(state)
+        self._keep_stored_options(state)
         check_general_resumable(path, state, self.config, self.pool)
         self.load_state_dict(state)
         return True
 
-    def _keep_stored_home_input(self, state: dict) -> None:
+    def _keep_stored_options(self, state: dict) -> None:
         """A run without the moves home input or the return mask (from before the options, or
         turned off) resumes without them, although new runs default to them: its weights have
         no place for the input, and it learnt its values unmasked. Only that way round —

@@ -76,12 +76,12 @@ def home_after(layers: np.ndarray) -> np.ndarray:
     return _tables(cells.tobytes(), cells.shape)[1]
 
 
-def moves_home(maps: np.ndarray, position: np.ndarray) -> np.ndarray:
-    """(N,) int32: each state's moves home. ``maps``: one (3,H,W) map shared by the batch or
-    (N,3,H,W), one per row; ``position``: the (N,H,W) one-hot UAV cells of an observation.
-
-    One cached field per distinct map (:func:`_tables`' cache), then a gather: the per-row
-    work is a cache lookup of the row's map, never a loop over cells."""
+def _at_cells(maps: np.ndarray, position: np.ndarray, table: int) -> np.ndarray:
+    """Row i's map's :func:`_tables` entry ``table`` (0: moves home, 1: actions home after each
+    action) at row i's UAV cell. ``maps``: one (3,H,W) map shared by the batch or (N,3,H,W), one
+    per row; ``position``: the (N,H,W) one-hot UAV cells. One cached table per distinct map,
+    then a gather: the per-row work is a cache lookup of the row's map, never a loop over
+    cells."""
     position = np.asarray(position)
     n = position.shape[0]
     cell = position.reshape(n, int(np.prod(position.shape[1:]))).argmax(axis=1)
@@ -89,38 +89,28 @@ def moves_home(maps: np.ndarray, position: np.ndarray) -> np.ndarray:
     if maps.ndim == 4 and n and maps.strides[0] == 0:  # GridMDP's broadcast view of one map
         maps = maps[0]
     if maps.ndim == 3:
-        return home_field(maps)[cell]
+        cells = _map_cells(maps)
+        return _tables(cells.tobytes(), cells.shape)[table][cell]
     if maps.shape[0] != n:
         raise ValueError(f"{maps.shape[0]} maps for {n} positions")
     cells = np.ascontiguousarray(maps != 0)
     shape = cells.shape[1:]
-    return np.array(
-        [_tables(layers.tobytes(), shape)[0][c] for layers, c in zip(cells, cell, strict=True)],
-        dtype=np.int32,
-    )
+    rows = [
+        _tables(layers.tobytes(), shape)[table][c] for layers, c in zip(cells, cell, strict=True)
+    ]
+    return np.array(rows, dtype=np.int32).reshape(n, *((NUM_ACTIONS,) if table else ()))
+
+
+def moves_home(maps: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """(N,) int32: each state's moves home (:func:`_at_cells`: ``maps`` shared or per row,
+    ``position`` one-hot)."""
+    return _at_cells(maps, position, 0)
 
 
 def safe_actions(maps: np.ndarray, position: np.ndarray, budget: np.ndarray) -> np.ndarray:
     """(N, 5) bool: the return rule (:meth:`MapGraph.safe_actions <cpp_mujoco.grid.graph.
     MapGraph.safe_actions>`) for a batch of observations — ``maps`` one (3,H,W) map shared by the
     batch or (N,3,H,W) per row, ``position`` the (N,H,W) one-hot cells, ``budget`` (N,) or (N,1)
-    the remaining budget. One cached table per distinct map, then a gather."""
-    position = np.asarray(position)
-    n = position.shape[0]
-    cell = position.reshape(n, int(np.prod(position.shape[1:]))).argmax(axis=1)
-    maps = np.asarray(maps)
-    if maps.ndim == 4 and n and maps.strides[0] == 0:  # GridMDP's broadcast view of one map
-        maps = maps[0]
-    if maps.ndim == 3:
-        after = home_after(maps)[cell]
-    else:
-        if maps.shape[0] != n:
-            raise ValueError(f"{maps.shape[0]} maps for {n} positions")
-        cells = np.ascontiguousarray(maps != 0)
-        keys = cells.reshape(n, -1)
-        after = np.empty((n, NUM_ACTIONS), dtype=np.int32)
-        _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-        for k, row in enumerate(first):  # one table per distinct map, not per row
-            rows = np.flatnonzero(inverse.reshape(-1) == k)
-            after[rows] = _tables(cells[row].tobytes(), cells.shape[1:])[1][cell[rows]]
-    return after <= np.asarray(budget).reshape(n, 1) - 1
+    the remaining budget."""
+    after = _at_cells(maps, position, 1)
+    return after <= np.asarray(budget).reshape(after.shape[0], 1) - 1

@@ -53,14 +53,14 @@ class MultiMapReplay(ReplayBuffer):
         self.coverage[t] = np.packbits(np.asarray(obs["coverage"]).reshape(n, -1) != 0, axis=-1)
 
     def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, ...]:
-        """As :meth:`ReplayBuffer._state`, each row on its own map (moves home and safe actions by
-        map index)."""
+        """As :meth:`ReplayBuffer._state`, each row on its own map (moves home by map index)."""
         index, position = self.map_index[t, e], self.position[t, e]
         grid = self.pool.grids(index, self.coverage[t, e], position)
         home = self.pool.moves_home(index, position)
-        budget = self.budget[t, e][:, None]
-        safe = self.pool.safe_actions(index, position, budget)
-        return grid, budget, self.wind[t, e], home, safe
+        return grid, self.budget[t, e][:, None], self.wind[t, e], home
+
+    def _safe(self, t: np.ndarray, e: np.ndarray) -> np.ndarray:
+        return self.pool.safe_actions(self.map_index[t, e], self.position[t, e], self.budget[t, e])
 
     ARRAYS = ("map_index", "coverage", "position", "budget", "wind", "action", "reward",
               "terminated")  # fmt: skip
@@ -105,17 +105,20 @@ class PooledDemonstrations:
         index, position = self.map_index[i], self.position[i]
         grid = self.pool.grids(index, self.coverage[i], position)
         home = self.pool.moves_home(index, position)
-        safe = self.pool.safe_actions(index, position, self.budget[i])
-        return grid, self.budget[i][:, None], self.wind[i], home, safe
+        return grid, self.budget[i][:, None], self.wind[i], home
 
     def sample(self, batch_size: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         """Uniformly drawn transitions in :meth:`ReplayBuffer.transitions`' layout."""
         i = rng.integers(len(self), size=batch_size)
+        nxt = self.next_state[i]
         return {
             "obs": self._states(i),
             "action": self.action[i],
             "return": self.ret[i],
-            "next_obs": self._states(self.next_state[i]),
+            "next_obs": self._states(nxt),
+            "next_safe": self.pool.safe_actions(
+                self.map_index[nxt], self.position[nxt], self.budget[nxt]
+            ),
             "discount": self.discount[i],
         }
 

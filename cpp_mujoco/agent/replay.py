@@ -103,14 +103,13 @@ class ReplayBuffer:
             "action": self.action[t, e],
             "return": ret,
             "next_obs": self._state(nxt, e),
+            "next_safe": self._safe(nxt, e),
             "discount": np.where(alive, self.gamma**steps, 0.0).astype(np.float32),
         }
 
     def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, ...]:
-        """(grid (b,5,H,W), budget (b,1), wind (b,2), moves home (b,), safe actions (b,5)) of
-        rows ``t`` of envs ``e``: what :func:`~cpp_mujoco.agent.network.scalar_inputs` reads
-        besides the grid, and the return rule's actions (:func:`~cpp_mujoco.agent.home_input.
-        safe_actions`) for a masked target."""
+        """(grid (b,5,H,W), budget (b,1), wind (b,2), moves home (b,)) of rows ``t`` of envs
+        ``e``: what :func:`~cpp_mujoco.agent.network.scalar_inputs` reads besides the grid."""
         b = t.size
         hw = self.height * self.width
         grid = np.empty((b, 5, self.height, self.width), dtype=np.float32)
@@ -120,9 +119,12 @@ class ReplayBuffer:
         pos[np.arange(b), self.position[t, e]] = 1.0
         grid[:, 4] = pos.reshape(b, self.height, self.width)
         home = self.home[self.position[t, e]]
-        budget = self.budget[t, e][:, None]
-        safe = self.after[self.position[t, e]] <= budget - 1
-        return grid, budget, self.wind[t, e], home, safe
+        return grid, self.budget[t, e][:, None], self.wind[t, e], home
+
+    def _safe(self, t: np.ndarray, e: np.ndarray) -> np.ndarray:
+        """(b, 5) bool: the return rule's actions (:func:`~cpp_mujoco.agent.home_input.
+        safe_actions`) in rows ``t`` of envs ``e``, for a masked target's bootstrap states."""
+        return self.after[self.position[t, e]] <= self.budget[t, e][:, None] - 1
 
     # ------------------------------------------------------------------ checkpointing
     def state_dict(self) -> dict:

@@ -163,10 +163,10 @@ class Trainer:
             demo[-n_demo:] = True
         d = self.device
         scale, wind = c.input_budget_scale, self.online.wind_inputs
-        (g, b, wd, h, _), (ng, nb, nwd, nh, next_safe) = s["obs"], s["next_obs"]
+        (g, b, wd, h), (ng, nb, nwd, nh) = s["obs"], s["next_obs"]
         if not self.online.home_input:
             h = nh = None
-        masked = {"next_safe": torch.from_numpy(next_safe).to(d)} if c.return_mask else {}
+        masked = {"next_safe": torch.from_numpy(s["next_safe"]).to(d)} if c.return_mask else {}
         return {  # "budget" holds the network's scalar inputs: the budget (, wind, moves home)
             "grid": torch.from_numpy(g).to(d),
             "budget": torch.from_numpy(scalar_inputs(b, wd, scale, wind, h)).to(d),
