@@ -130,3 +130,9 @@ def load_map_set(name: str, first: int | None = None) -> list[GridMap]:
 
 def is_heldout_seed(seed: int) -> bool:
     return seed in HELDOUT_SEEDS
+
+
+def heldout_set_of(digest: str) -> str | None:
+    """The set whose committed maps include the map of ``digest``, or None: a map a user brings
+    for training may be a held-out one written out by ``cpp-mujoco maps``."""
+    return next((name for name, spec in _read().items() if digest in spec.digests), None)

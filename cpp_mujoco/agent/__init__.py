@@ -55,6 +55,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
         name=f"ddqn-{where.name}" if where.bundled else f"ddqn-{where.name} (file)",
         metadata={
             **{k: obj.get(k) for k in ("map", "config", "metrics")},
+            **{k: obj[k] for k in ("train_maps", "validation_maps") if k in obj},  # general
             "architecture": obj.get("architecture", "paper"),
             "return_mask": return_mask,
             "source": str(where.path),

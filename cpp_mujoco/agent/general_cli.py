@@ -28,6 +28,9 @@ _GENERAL_HELP = {
     "maps_per_size": "generated training maps of each size (seeds map-seed on)",
     "map_seed": "first training map seed (training seeds stay below 1,000,000)",
     "episodes_per_map": "episodes an environment flies on a map before it draws another",
+    "named_maps": "maps trained beside the generated ones: bundled names or PNG paths (the "
+    "paper's A B C, your site); each flies its size class's budgets, with demonstrations",
+    "named_share": "fraction of the training episodes flown on the --named-maps",
     "val_maps_per_size": "validation maps of each size, on which best.pt is chosen",
     "val_seed": "first validation map seed (2,000,000..2,999,999)",
     "demo_maps_per_size": "training maps of each size the demo planner flies (the first ones)",
@@ -82,6 +85,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         text = f"{_GENERAL_HELP.get(f.name) or _HELP[f.name]} (default: {default})"
         if f.name == "sizes":
             p.add_argument("--sizes", type=int, nargs="+", default=None, help=text)
+        elif f.name == "named_maps":
+            p.add_argument("--named-maps", nargs="+", default=None, metavar="MAP", help=text)
         elif f.name == "architecture":
             p.add_argument("--architecture", choices=ARCHITECTURES, default=None, help=text)
         elif type(default) is bool:
@@ -100,8 +105,9 @@ def _given(args: argparse.Namespace) -> dict:
 def config_from_args(args: argparse.Namespace) -> GeneralTrainConfig:
     """The config the options describe; a bad value is a ``ValueError`` naming its option."""
     given = _given(args)
-    if "sizes" in given:
-        given["sizes"] = tuple(given["sizes"])
+    for name in ("sizes", "named_maps"):
+        if name in given:
+            given[name] = tuple(given[name])
     try:
         return GeneralTrainConfig(**given)
     except ValueError as exc:

@@ -35,6 +35,10 @@ class GeneralTrainConfig(TrainConfig):
     maps_per_size: int = 512  # training maps per size: seeds map_seed .. map_seed + count − 1
     map_seed: int = 0  # first training seed (training seeds stay below 1,000,000)
     episodes_per_map: int = 1  # a slot draws a new map after this many episodes (1: every reset)
+    # maps a user brings (bundled names or PNG paths: the paper's A B C, a site) trained beside
+    # the generated ones, each with its size class's budgets and demonstrations on every one
+    named_maps: tuple[str, ...] = ()
+    named_share: float = 0.25  # fraction of episodes flown on the named maps (if there are any)
     val_maps_per_size: int = 4  # validation maps per size (best.pt is chosen on them)
     val_seed: int = VALIDATION_SEEDS.start  # first validation seed (2,000,000..2,999,999)
     # demonstrations fly the first demo_maps_per_size maps of each size (all of them if there
@@ -75,6 +79,9 @@ class GeneralTrainConfig(TrainConfig):
     def __post_init__(self) -> None:
         if isinstance(self.sizes, (list, int)):  # from a checkpoint or one size
             self.sizes = tuple(self.sizes) if isinstance(self.sizes, list) else (self.sizes,)
+        if isinstance(self.named_maps, (list, str)):  # from a checkpoint or one name
+            names = self.named_maps
+            self.named_maps = tuple(names) if isinstance(names, list) else (names,)
         super().__post_init__()
         if self.architecture not in ARCHITECTURES:
             raise ValueError(
@@ -92,6 +99,12 @@ class GeneralTrainConfig(TrainConfig):
                      "final_budget_step", *NETWORK_FIELDS):  # fmt: skip
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if not 0.0 <= self.named_share < 1.0:  # NaN fails too
+            raise ValueError(f"named_share must lie in [0, 1), got {self.named_share}")
+        if self.named_maps and not self.named_share:
+            raise ValueError("named_maps need named_share > 0 (the share of their episodes)")
+        if len(set(self.named_maps)) != len(self.named_maps):
+            raise ValueError(f"named_maps must not repeat, got {self.named_maps}")
         if self.demo_maps_per_size < 0:
             raise ValueError(f"demo_maps_per_size must be >= 0, got {self.demo_maps_per_size}")
         if self.demo_fraction > 0 and self.demo_maps_per_size == 0:

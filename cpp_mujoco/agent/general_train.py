@@ -51,6 +51,7 @@ from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.agent.training_run import run_in_folder
+from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
 
 REFERENCE_PLANNER = "safe-greedy"  # flown on the validation maps beside the final agent
@@ -81,6 +82,16 @@ def initial_general_weights(config: GeneralTrainConfig) -> dict | None:
     return state["network"]
 
 
+def training_pool(config: GeneralTrainConfig, per_size: int | None = None) -> MapPool:
+    """The generated training maps (the first ``per_size`` of each size if given: a check)
+    plus the config's named ones (``MapError`` for a name or file that is not a map,
+    ``ValueError`` for one that does not fit)."""
+    pool = MapPool.generate(config.sizes, per_size or config.maps_per_size, config.map_seed)
+    if not config.named_maps:
+        return pool
+    return pool.with_named([load_map(name) for name in config.named_maps])
+
+
 class GeneralTrainer(Trainer):
     def __init__(
         self, config: GeneralTrainConfig, out_dir: str | os.PathLike, init: dict | None = None
@@ -95,9 +106,9 @@ class GeneralTrainer(Trainer):
         set_threads(c.threads)
         cores = os.cpu_count() or 1
         self.tuner = ThreadTuner((1, cores)) if c.threads == 0 and cores > 1 else None
-        self.pool = MapPool.generate(c.sizes, c.maps_per_size, c.map_seed)
+        self.pool = training_pool(c)
         self.val_pool = MapPool.generate(c.sizes, c.val_maps_per_size, c.val_seed)
-        self.env = MultiMapVectorEnv(self.pool, c.num_envs, c.episodes_per_map)
+        self.env = MultiMapVectorEnv(self.pool, c.num_envs, c.episodes_per_map, c.named_share)
         torch.manual_seed(c.seed)
         self._build_networks()
         if init is not None:
@@ -110,8 +121,10 @@ class GeneralTrainer(Trainer):
             self.guide = MapwiseGuide(make_planner(c.guide, c.wind_margin), self.pool)
         self.demos = None
         if c.demo_fraction > 0:
-            # the pool holds maps_per_size maps of each size in turn: the first of each size
+            # the pool holds maps_per_size maps of each size in turn: the first of each size,
+            # and every named map
             ids = [k * c.maps_per_size + j for k in range(len(c.sizes)) for j in range(c.demo_maps)]
+            ids += [int(i) for i in self.pool.named]
             self.demos = record_pool_demonstrations(
                 self.pool, ids, make_planner(c.demo_planner, c.wind_margin), c.n_step, c.gamma,
                 c.demo_budget_step,
@@ -142,7 +155,9 @@ class GeneralTrainer(Trainer):
     @property
     def label(self) -> str:
         sizes = "+".join(str(s) for s in self.config.sizes)
-        return f"general ({len(self.pool)} generated maps, sizes {sizes})"
+        named = f" + {', '.join(self.config.named_maps)}" if self.config.named_maps else ""
+        generated = len(self.pool) - len(self.pool.named)
+        return f"general ({generated} generated maps{named}, sizes {sizes})"
 
     # ------------------------------------------------------------------ evaluation and logging
     def agent(self) -> GreedyAgent:
@@ -283,6 +298,7 @@ def train_general(
     """Train (or continue) a general run in ``out_dir``, locked meanwhile, as
     :func:`~cpp_mujoco.agent.training_run.train` does for one map; returns the trainer."""
     init = initial_general_weights(config)  # a bad file fails before the folder is claimed
+    training_pool(config, per_size=1)  # and so does a named map that is not one or does not fit
     return run_in_folder(
         lambda out: GeneralTrainer(config, out, init), out_dir,
         resume=resume, overwrite=overwrite, progress=progress,

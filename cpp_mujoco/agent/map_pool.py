@@ -2,10 +2,12 @@
 
 Seeds decide the maps (:func:`~cpp_mujoco.map_generator.generate_from_seed`), so a pool is its
 sizes, its count per size and its first seed, and a checkpoint can say exactly what it was
-trained on. Three seed ranges never overlap: training draws below 1,000,000, the held-out test
-sets own 1,000,000..1,999,999 (:data:`~cpp_mujoco.map_sets.HELDOUT_SEEDS`) and validation (the
-maps ``best.pt`` is chosen on) owns :data:`VALIDATION_SEEDS` — choosing on the test maps, or
-validating on training maps, would make the reported numbers optimistic.
+trained on — plus the maps a user brings (:meth:`MapPool.with_named`: the paper's A, B, C or a
+site's PNG), recorded by name and digest. Three seed ranges never overlap: training draws below
+1,000,000, the held-out test sets own 1,000,000..1,999,999
+(:data:`~cpp_mujoco.map_sets.HELDOUT_SEEDS`; a brought map that is one of theirs is refused) and
+validation (the maps ``best.pt`` is chosen on) owns :data:`VALIDATION_SEEDS` — choosing on the
+test maps, or validating on training maps, would make the reported numbers optimistic.
 
 Maps of different sizes share a minibatch padded to the pool's largest side with no-fly cells
 (:func:`~cpp_mujoco.agent.general_network.pad_grids` says why that changes nothing for the
@@ -23,12 +25,13 @@ from cpp_mujoco.agent.home_input import home_after, home_field
 from cpp_mujoco.agent.network import NFZ_CHANNEL
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.map_generator import generate_from_seed
-from cpp_mujoco.map_sets import HELDOUT_SEEDS
+from cpp_mujoco.map_sets import HELDOUT_SEEDS, heldout_set_of
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.size_classes import size_config
 
 TRAIN_SEEDS = range(0, 1_000_000)
 VALIDATION_SEEDS = range(2_000_000, 3_000_000)
+NAMED_SEED = -1  # the seed a pool records for a map it did not generate (MapPool.with_named)
 
 
 @dataclass
@@ -57,15 +60,45 @@ class MapPool:
         for size in sizes:
             maps += [generate_from_seed(seed, size) for seed in seeds]
             used += seeds
-        side = max(sizes)
+        return cls._of(maps, used, max(sizes))
+
+    @classmethod
+    def _of(cls, maps: list[GridMap], seeds: list[int], side: int) -> MapPool:
         layers = np.zeros((len(maps), 3, side, side), dtype=np.int8)
         layers[:, NFZ_CHANNEL] = 1
         for i, grid_map in enumerate(maps):
             h, w = grid_map.shape
             layers[i, :, :h, :w] = grid_map.layers
         layers.flags.writeable = False
-        configs = {size: size_config(size) for size in sizes}
-        return cls(maps, used, side, [configs[max(m.shape)] for m in maps], layers)
+        configs = {size: size_config(size) for size in {max(m.shape) for m in maps}}
+        return cls(maps, seeds, side, [configs[max(m.shape)] for m in maps], layers)
+
+    def with_named(self, named: list[GridMap]) -> MapPool:
+        """This pool plus maps a user brings (the paper's A, B, C or a site's PNG), each flown
+        with its own size class's budgets; their seed is :data:`NAMED_SEED`. ``ValueError`` for
+        a map larger than the pool's side or one already in it."""
+        digests = {m.digest for m in self.maps}
+        for grid_map in named:
+            if max(grid_map.shape) > self.side:
+                raise ValueError(
+                    f"map {grid_map.label} is {grid_map.shape[0]}x{grid_map.shape[1]}: larger "
+                    f"than the pool's {self.side}x{self.side} (add its size to --sizes)"
+                )
+            if grid_map.digest in digests:
+                raise ValueError(f"map {grid_map.label} is already in the pool")
+            if (held := heldout_set_of(grid_map.digest)) is not None:
+                raise ValueError(
+                    f"map {grid_map.label} is a map of the held-out set {held}: training on it "
+                    "would make that set's numbers optimistic"
+                )
+            digests.add(grid_map.digest)
+        seeds = self.seeds + [NAMED_SEED] * len(named)
+        return MapPool._of(self.maps + list(named), seeds, self.side)
+
+    @property
+    def named(self) -> np.ndarray:
+        """Indices of the maps that were not generated (:meth:`with_named`)."""
+        return np.flatnonzero(np.asarray(self.seeds) == NAMED_SEED)
 
     def __len__(self) -> int:
         return len(self.maps)
@@ -82,12 +115,15 @@ class MapPool:
 
     def identity(self) -> dict:
         """What a checkpoint or a result records about the pool."""
+        seeds = [s for s in self.seeds if s != NAMED_SEED]
+        named = {"named": [f"{self.maps[i].label} ({self.maps[i].digest})" for i in self.named]}
         return {
             "sizes": self.sizes,
             "maps": len(self),
-            "seeds": [min(self.seeds), max(self.seeds)],
+            "seeds": [min(seeds), max(seeds)],
             "side": self.side,
             "digest": self.digest,
+            **(named if named["named"] else {}),
         }
 
     def moves_home(self, map_index: np.ndarray, position: np.ndarray) -> np.ndarray:

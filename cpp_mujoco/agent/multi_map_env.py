@@ -25,10 +25,22 @@ from cpp_mujoco.grid.mdp import GridMDP
 
 
 class MultiMapVectorEnv:
-    def __init__(self, pool: MapPool, num_envs: int, episodes_per_map: int = 1):
+    """``named_share``: the fraction of map draws that pick one of the pool's named maps
+    (:attr:`MapPool.named`, uniformly), the rest a generated one — a few maps a user brings
+    would otherwise be drawn once in a thousand episodes."""
+
+    def __init__(
+        self, pool: MapPool, num_envs: int, episodes_per_map: int = 1, named_share: float = 0.0
+    ):
         if num_envs < 1 or episodes_per_map < 1:
             raise ValueError("num_envs and episodes_per_map must be >= 1")
+        if not 0.0 <= named_share < 1.0:
+            raise ValueError(f"named_share must lie in [0, 1), got {named_share}")
         self.pool, self.num_envs, self.episodes_per_map = pool, num_envs, episodes_per_map
+        named = pool.named
+        self.named_share = named_share if named.size else 0.0
+        self._named = named
+        self._generated = np.setdiff1d(np.arange(len(pool)), named)
         self.rng = np.random.default_rng()
         self.map_index = np.zeros(num_envs, dtype=np.int64)
         self.episodes_on_map = np.zeros(num_envs, dtype=np.int64)
@@ -45,11 +57,18 @@ class MultiMapVectorEnv:
     def _start_episode(self, i: int) -> None:
         """Slot ``i``'s next episode; on a new map after ``episodes_per_map`` of them."""
         if self.episodes_on_map[i] >= self.episodes_per_map:
-            self.map_index[i] = self.rng.integers(len(self.pool))
+            self.map_index[i] = self._draw_map()
             self.mdps[i] = self._mdp(int(self.map_index[i]))
             self.episodes_on_map[i] = 0
         self.mdps[i].reset(self.rng)
         self.episodes_on_map[i] += 1
+
+    def _draw_map(self) -> int:
+        if not self.named_share:  # without named maps: the draw of runs from before them
+            return int(self.rng.integers(len(self.pool)))
+        if self.rng.random() < self.named_share:
+            return int(self.rng.choice(self._named))
+        return int(self.rng.choice(self._generated))
 
     def reset(self, *, seed: int | None = None) -> tuple[dict[str, np.ndarray], dict]:
         self.rng = np.random.default_rng(seed)

@@ -1,0 +1,111 @@
+"""Maps a user brings, trained beside the generated ones (``train-general --named-maps``): the
+pool records them, the environments fly them at their share, the demonstrations cover them,
+and a map that is not one, does not fit or is a held-out test map is refused before any run."""
+
+import numpy as np
+import pytest
+
+from cpp_mujoco.agent import load_agent
+from cpp_mujoco.agent.general_config import GeneralTrainConfig
+from cpp_mujoco.agent.general_train import GeneralTrainer, training_pool
+from cpp_mujoco.agent.map_pool import NAMED_SEED, MapPool
+from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
+from cpp_mujoco.map_generator import generate_from_seed
+from cpp_mujoco.map_sets import map_set_spec
+from cpp_mujoco.maps import load_map
+
+from .test_general_agent import TINY
+
+
+@pytest.fixture(autouse=True)
+def _one_thread(one_thread):
+    """Small nets on a shared 2-core machine: one torch thread."""
+
+
+def test_the_pool_records_named_maps_and_pads_them():
+    base = MapPool.generate((16, 32), 2, 0)
+    pool = base.with_named([load_map("A"), load_map("C")])
+    assert len(pool) == 6 and list(pool.named) == [4, 5]
+    assert pool.seeds[4:] == [NAMED_SEED, NAMED_SEED]
+    assert np.array_equal(pool.layers[4, :, :16, :16], load_map("A").layers)
+    assert (pool.layers[5, 2, 16:] == 1).all()  # no-fly padding to the pool's side
+    assert pool.configs[4].max_budget == 75  # a 16x16 map flies the 16x16 size class
+    ident = pool.identity()
+    assert ident["named"] == ["A (242dcad1db2a)", "C (e918b649ce3e)"]
+    assert ident["seeds"] == [0, 1] and ident["digest"] != base.identity()["digest"]
+    assert "named" not in base.identity() and not base.named.size
+
+
+@pytest.mark.parametrize(
+    "maps, match",
+    [
+        ([load_map("A"), load_map("A")], "already in the pool"),
+        ([generate_from_seed(5, 32)], "larger than the pool's 16x16"),
+        ([generate_from_seed(map_set_spec("heldout16-v1").first_seed + 3, 16)], "heldout16-v1"),
+    ],
+)
+def test_maps_that_do_not_fit_are_refused(maps, match):
+    with pytest.raises(ValueError, match=match):
+        MapPool.generate((16,), 2, 0).with_named(maps)
+
+
+def test_environments_fly_the_named_maps_at_their_share():
+    pool = MapPool.generate((16,), 30, 0).with_named([load_map("B")])
+    env = MultiMapVectorEnv(pool, 8, named_share=0.3)
+    env.reset(seed=1)
+    drawn = [env._draw_map() for _ in range(4000)]
+    share = np.mean(np.asarray(drawn) == pool.named[0])
+    assert abs(share - 0.3) < 0.03  # binomial sd 0.007
+    generated = np.bincount([d for d in drawn if d != pool.named[0]], minlength=30)
+    assert generated.min() > 50  # every generated map is still drawn (≈ 93 each)
+    # a pool without named maps draws as runs from before the option did
+    plain = MapPool.generate((16,), 30, 0)
+    envs = [MultiMapVectorEnv(plain, 8, named_share=s) for s in (0.0, 0.3)]
+    for env in envs:
+        env.reset(seed=1)
+        for _ in range(60):
+            env.step(np.arange(8) % 5)
+    assert np.array_equal(envs[0].map_index, envs[1].map_index) and envs[1].named_share == 0
+
+
+def test_the_config_refuses_bad_named_options():
+    with pytest.raises(ValueError, match="named_share"):
+        GeneralTrainConfig(named_maps=("A",), named_share=float("nan"))
+    with pytest.raises(ValueError, match="named_share > 0"):
+        GeneralTrainConfig(named_maps=("A",), named_share=0.0)
+    with pytest.raises(ValueError, match="repeat"):
+        GeneralTrainConfig(named_maps=("A", "A"))
+    stored = GeneralTrainConfig(named_maps=("A", "B")).to_dict()
+    assert GeneralTrainConfig.from_dict(stored).named_maps == ("A", "B")
+    old = {k: v for k, v in GeneralTrainConfig().to_dict().items() if "named" not in k}
+    assert GeneralTrainConfig.from_dict(old).named_maps == ()  # a run from before the option
+
+
+def test_a_run_trains_on_its_named_map_with_demonstrations(tmp_path):
+    config = GeneralTrainConfig(
+        total_updates=20, **{**TINY, "learning_starts": 64, "named_maps": ("A",),
+                             "named_share": 0.5},
+    )  # fmt: skip
+    trainer = GeneralTrainer(config, tmp_path)
+    a = int(trainer.pool.named[0])
+    assert trainer.pool.maps[a].label == "A" and len(trainer.pool) == 5
+    assert a in set(trainer.demos.map_index.tolist())  # demonstrations on the named map too
+    trainer.run(progress=False)
+    flown = trainer.replay.map_index[: trainer.replay.pos].reshape(-1)  # rows written
+    assert (flown == a).mean() > 0.2  # half the episodes start there
+    agent = load_agent(tmp_path / "agent.pt")
+    assert agent.metadata["train_maps"]["named"] == ["A (242dcad1db2a)"]
+    assert list(agent.metadata["config"]["named_maps"]) == ["A"]
+
+
+def test_the_command_refuses_a_bad_named_map_before_claiming_the_folder(tmp_path, capsys):
+    from cpp_mujoco.cli import main
+
+    out = tmp_path / "run"
+    for name, match in [("no-such-map", "no-such-map"), (str(tmp_path), "map")]:
+        argv = ["train-general", "--out", str(out), "--named-maps", "A", name, "--sizes", "16",
+                "--maps-per-size", "2", "--no-progress"]  # fmt: skip
+        assert main(argv) == 2
+        assert match in capsys.readouterr().err
+        assert not out.exists() or not any(out.iterdir())
+    assert training_pool(GeneralTrainConfig(sizes=(16,), maps_per_size=2), per_size=1).sizes == [16]
