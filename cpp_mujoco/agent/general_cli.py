@@ -52,6 +52,9 @@ _GENERAL_HELP = {
     "return_mask": "act only among the actions after which the way home is still paid (the "
     "safe greedy planner's return rule), in training and as a policy; --resume keeps the run's "
     "own setting (off for runs from before the option)",
+    "target_input": "the network also reads, for each action, the moves from the cell it leads "
+    "to until the 3x3 view holds an unseen target (global-local only; from an --init-from "
+    "network without it, the new inputs start at zero weight)",
     "init_from": "start from this general agent's weights (a run's agent.pt or best.pt of the "
     "same network; empty = random)",
     "eval_budget_step": "validation flies every n-th budget of each size class",

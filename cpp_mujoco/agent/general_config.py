@@ -68,6 +68,10 @@ class GeneralTrainConfig(TrainConfig):
     # act among the return rule's safe actions (TrainConfig.return_mask): on for new general
     # runs — the agent must fly unseen maps home every time; a config stored before reads False
     return_mask: bool = True
+    # global-local only: the network also reads, for each action, the moves from the cell it
+    # leads to until the 3×3 view holds an unseen target (:mod:`~cpp_mujoco.agent.target_input`);
+    # with --init-from a network without it, the new inputs start at zero weight
+    target_input: bool = False
     # --- defaults that differ from the per-map agent's -----------------------------------------
     buffer_size: int = 200_000  # many maps: a longer memory (≈ 35 MB packed)
     total_updates: int = 200_000  # a skill, not a tour: a GPU or a long CPU run
@@ -87,6 +91,8 @@ class GeneralTrainConfig(TrainConfig):
             raise ValueError(
                 f"architecture must be one of {', '.join(ARCHITECTURES)}, got {self.architecture!r}"
             )
+        if self.architecture == "fcn" and self.target_input:
+            raise ValueError("target_input is an input of the global-local network, not fcn's")
         if self.architecture == "fcn" and self.conv_filters < 2:
             raise ValueError(f"conv_filters must be >= 2 for fcn, got {self.conv_filters}")
         if not self.sizes or any(
@@ -148,4 +154,5 @@ class GeneralTrainConfig(TrainConfig):
             **kwargs,
             "max_side": self.max_side or max(self.sizes),
             "home_input": self.home_input,
+            **({"target_input": True} if self.target_input else {}),
         }

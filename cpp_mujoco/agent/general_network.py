@@ -11,12 +11,13 @@ no-fly outside the map, S = max(``max_side``, H, W) — and reads it twice:
 
 Two unpadded ("valid") 5×5 convolutions per view, as in Theile et al.'s code, then both views
 flattened, the budget (and the observed wind, × ``WIND_GAIN``, like ``QNetwork(wind_inputs=True)``;
-with ``home_input`` the moves home, :mod:`~cpp_mujoco.agent.home_input`) appended, three dense
-layers of 256 and the 5 Q-values. Every tensor after the centring has a fixed shape, so one set of
-weights flies every map size; and because the canvas has a fixed side for all maps up to
-``max_side``, a map padded with no-fly cells gives exactly the Q-values of the map itself — a
-mixed 16/32 minibatch is padded to 32×32 and stacked (:func:`pad_grids`). The views are computed
-from the map without building the canvas (:func:`centred_views`).
+with ``home_input`` the moves home, :mod:`~cpp_mujoco.agent.home_input`; with ``target_input``
+the moves to new targets after each action, :mod:`~cpp_mujoco.agent.target_input`) appended,
+three dense layers of 256 and the 5 Q-values. Every tensor after the centring has a fixed
+shape, so one set of weights flies every map size; and because the canvas has a fixed side for
+all maps up to ``max_side``, a map padded with no-fly cells gives exactly the Q-values of the
+map itself — a mixed 16/32 minibatch is padded to 32×32 and stacked (:func:`pad_grids`). The
+views are computed from the map without building the canvas (:func:`centred_views`).
 
 The alternative, measured against it: :mod:`cpp_mujoco.agent.fcn_network`, fully convolutional
 with global pooling (no flatten at all, also size-independent, but it must learn long-range
@@ -33,6 +34,8 @@ import torch.nn.functional as F
 from torch import nn
 
 from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL, dense_head
+from cpp_mujoco.agent.target_input import NUM_FEATURES as TARGET_FEATURES
+from cpp_mujoco.agent.target_input import moves_to_unseen
 
 POSITION_CHANNEL = 4
 ARCHITECTURE = "general"  # what a checkpoint of this network records under "architecture"
@@ -68,6 +71,7 @@ class GeneralQNetwork(nn.Module):
         num_hidden: int = 3,
         wind_inputs: bool = False,
         home_input: bool = False,
+        target_input: bool = False,
     ):
         super().__init__()
         if local_size % 2 != 1:
@@ -85,6 +89,9 @@ class GeneralQNetwork(nn.Module):
             conv_filters=conv_filters, kernel_size=kernel_size, hidden=hidden,
             num_hidden=num_hidden, wind_inputs=bool(wind_inputs), home_input=bool(home_input),
         )  # fmt: skip
+        if target_input:  # recorded only when on: files from before the option rebuild as they were
+            self.kwargs["target_input"] = True
+        self.target_input = bool(target_input)
         self.local_size, self.global_size, self.max_side = local_size, global_size, max_side
         self.height = self.width = None  # any map size
         self.wind_inputs, self.home_input = bool(wind_inputs), bool(home_input)
@@ -92,7 +99,10 @@ class GeneralQNetwork(nn.Module):
         self.local_conv = _conv_pair(conv_filters, kernel_size)
         self.global_conv = _conv_pair(conv_filters, kernel_size)
         features = conv_filters * ((local_size - shrink) ** 2 + (global_size - shrink) ** 2)
-        self.head = dense_head(features + self.num_scalars, hidden, num_hidden)
+        # the inputs before the moves to new targets (target_input.widen_for_target_input)
+        self.features_before_target = features + self.num_scalars
+        extra = TARGET_FEATURES if self.target_input else 0
+        self.head = dense_head(self.features_before_target + extra, hidden, num_hidden)
 
     def input_cells(self, shape: tuple[int, int]) -> int:
         """Cells of the canvas an H×W map is centred on (a bound on what a forward pass holds
@@ -108,15 +118,14 @@ class GeneralQNetwork(nn.Module):
 
     def forward(self, grid: torch.Tensor, scalars: torch.Tensor) -> torch.Tensor:
         local, global_ = self.views(grid)
-        x = torch.cat(
-            [
-                self.local_conv(local).flatten(1),
-                self.global_conv(global_).flatten(1),
-                scalars.reshape(-1, self.num_scalars),
-            ],
-            dim=1,
-        )
-        return self.head(x)
+        parts = [
+            self.local_conv(local).flatten(1),
+            self.global_conv(global_).flatten(1),
+            scalars.reshape(-1, self.num_scalars),
+        ]
+        if self.target_input:
+            parts.append(moves_to_unseen(grid, 2 * self.max_side))
+        return self.head(torch.cat(parts, dim=1))
 
 
 def _conv_pair(filters: int, kernel_size: int) -> nn.Sequential:
@@ -236,7 +245,7 @@ def pad_grids(grid: np.ndarray, side: int) -> np.ndarray:
 
 def check_general_kwargs(kwargs: object) -> str | None:
     """None if ``kwargs`` can build a :class:`GeneralQNetwork`, else what is wrong."""
-    return check_network_kwargs(kwargs, KWARG_RANGES, "general")
+    return check_network_kwargs(kwargs, KWARG_RANGES, "general", (*INPUT_FLAGS, "target_input"))
 
 
 def num_scalars(wind_inputs: bool, home_input: bool) -> int:
@@ -244,20 +253,22 @@ def num_scalars(wind_inputs: bool, home_input: bool) -> int:
     return 1 + 3 * bool(wind_inputs) + bool(home_input)
 
 
-def check_network_kwargs(kwargs: object, ranges: dict, label: str) -> str | None:
+def check_network_kwargs(
+    kwargs: object, ranges: dict, label: str, flags: tuple[str, ...] = INPUT_FLAGS
+) -> str | None:
     """None if ``kwargs`` are integers within ``ranges`` (each present) and optional bools
     :data:`INPUT_FLAGS`, else what is wrong (``label`` names the network). A file without a
     flag is from before it: the input is off."""
     if not isinstance(kwargs, dict):
         return f"network_kwargs {kwargs!r} are not a dict"
-    unknown = set(kwargs) - set(ranges) - set(INPUT_FLAGS)
+    unknown = set(kwargs) - set(ranges) - set(flags)
     if unknown:
         return f"unknown network_kwargs {sorted(unknown)} for the {label} network"
     for name, (low, high) in ranges.items():
         value = kwargs.get(name)
         if type(value) is not int or not low <= value <= high:
             return f"network_kwargs {name}={value!r} is not an integer in {low}..{high}"
-    for flag in INPUT_FLAGS:
+    for flag in flags:
         if type(kwargs.get(flag, False)) is not bool:
             return f"network_kwargs {flag}={kwargs[flag]!r} is not a bool"
     return None

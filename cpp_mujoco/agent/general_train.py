@@ -48,6 +48,7 @@ from cpp_mujoco.agent.map_pool import MapPool, MapwiseGuide
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay, record_pool_demonstrations
 from cpp_mujoco.agent.policy import GreedyAgent
+from cpp_mujoco.agent.target_input import widen_for_target_input
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.agent.training_run import run_in_folder
@@ -68,17 +69,25 @@ def build_network(config: GeneralTrainConfig) -> GeneralQNetwork | FCNQNetwork:
 
 def initial_general_weights(config: GeneralTrainConfig) -> dict | None:
     """The weights ``config.init_from`` names (a general agent or run checkpoint of the config's
-    very network), or None; :class:`CheckpointError` for any other file."""
+    very network, or of it without ``target_input``: widened), or None; :class:`CheckpointError`
+    for any other file."""
     if not config.init_from:
         return None
     path = Path(config.init_from)
     state = load_checkpoint(path)
-    arch, kwargs = NETWORKS[config.architecture][1], build_network(config).kwargs
-    if not is_general(state) or state["architecture"] != arch or state["network_kwargs"] != kwargs:
+    network = build_network(config)
+    arch, kwargs = NETWORKS[config.architecture][1], network.kwargs
+    stored = state["network_kwargs"]
+    widen = config.target_input and isinstance(stored, dict) and "target_input" not in stored
+    if widen:  # a network without the moves to new targets: they start at zero weight
+        kwargs = {k: v for k, v in kwargs.items() if k != "target_input"}
+    if not is_general(state) or state["architecture"] != arch or stored != kwargs:
         raise CheckpointError(
-            f"{path} holds {state.get('architecture', 'paper')} {state['network_kwargs']}; "
+            f"{path} holds {state.get('architecture', 'paper')} {stored}; "
             f"--init-from needs this run's network: {arch} {kwargs}"
         )
+    if widen:
+        return widen_for_target_input(state["network"], network.features_before_target)
     return state["network"]
 
 
