@@ -141,10 +141,13 @@ def policy_name(policy: object) -> str:
 
 def policy_identity(policy: object) -> dict[str, Any]:
     """What results record of a trained agent beyond its name (empty for a planner): the file
-    it was loaded from and its digest, its network, and whether it acts with the return mask
-    — two files of one name, or one file with and without the mask, never read alike."""
+    it was loaded from and its digest, its network and inputs, whether it acts with the return
+    mask — two files of one name, or one file with and without the mask, never read alike."""
     meta = getattr(policy, "metadata", None) or {}
     out = {k: meta[k] for k in ("source", "digest", "bundled", "architecture") if k in meta}
+    kwargs = getattr(getattr(policy, "network", None), "kwargs", None)
+    if isinstance(kwargs, dict):  # its inputs too (moves home, moves to new targets, wind)
+        out["network"] = dict(kwargs)
     if hasattr(policy, "return_mask"):
         out["return_mask"] = bool(policy.return_mask)
     return out

@@ -17,6 +17,7 @@ from cpp_mujoco.agent.target_input import (
     moves_to_unseen,
     widen_for_target_input,
 )
+from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import graph_from_observation
 from cpp_mujoco.grid.mdp import GridMDP
@@ -114,6 +115,8 @@ def test_a_run_with_the_input_starts_from_a_network_without_it(tmp_path):
     trainer.run(progress=False)
     agent = load_agent(tmp_path / "wide/agent.pt")
     assert agent.network.target_input and agent.metadata["config"]["target_input"]
+    result = evaluate(agent, trainer.pool.maps[0], budgets=[25], config=trainer.pool.configs[0])
+    assert result.conditions["policy"]["network"]["target_input"]  # results say which inputs
     # a file with the input cannot start a run without it
     back = GeneralTrainConfig(init_from=str(tmp_path / "wide/agent.pt"), **TINY)
     with pytest.raises(CheckpointError, match="needs this run's network"):
