@@ -1,13 +1,16 @@
 """Train the bundled general agent (``load_agent("general")``) with the project's command, in
-two stages, and check it on its validation maps.
+three stages, and check it on its validation maps.
 
     python scripts/train_general.py --out runs/general [--install] [-- more train-general options]
 
 Stage 1 (:data:`STAGES`, ``OUT/stage1``) learns to fly generated 16×16 and 32×32 maps without
 the return mask, guided by the safe greedy planner and taught by beam-search demonstrations: the
-first 25,000 updates of a 200,000-update schedule. Stage 2 (``OUT/general``) starts from its
+first 25,000 updates of a 200,000-update schedule. Stage 2 (``OUT/stage2``) starts from its
 ``agent.pt`` with the return mask on (every calm episode lands; the network learns where to
-fly) for 36,000 updates; its ``best.pt`` (chosen on the validation maps) is the agent.
+fly) for 36,000 updates. Stage 3 (``OUT/stage3``) starts from stage 2's ``best.pt`` with the
+moves to new targets as an input (zero weights at first), 8,192 generated maps per size and the
+paper's maps A, B and C in the pool (15 % of the episodes), for 36,000 updates at half the
+learning rate; its ``best.pt`` (chosen on the validation maps) is the agent.
 ``--install`` copies it to ``cpp_mujoco/agent/bundled/general.pt`` (weights + metadata only).
 Run again, the script resumes a stage whose folder holds a ``checkpoint.pt`` and skips a
 finished one (docs/agent.md, "One agent for any map").
@@ -33,9 +36,15 @@ STAGES = [  # (folder, train-general options)
         "--no-return-mask", "--guide-updates", "200000", "--eval-every", "5000",
         "--stop-after-updates", "25000",
     ]),
-    ("general", [
+    ("stage2", [
         "--init-from", "{stage1}/agent.pt", "--guide-updates", "200000",
         "--total-updates", "36000", "--eval-every", "4000",
+    ]),
+    ("stage3", [
+        "--init-from", "{stage2}/best.pt", "--target-input", "--named-maps", "A", "B", "C",
+        "--named-share", "0.15", "--maps-per-size", "8192", "--learning-rate", "0.00025",
+        "--guide-updates", "200000", "--total-updates", "36000", "--eval-every", "4000",
+        "--val-maps-per-size", "8",
     ]),
 ]  # fmt: skip
 
@@ -82,7 +91,7 @@ def main(argv=None) -> int:
             return code
     kept = runs[-1][0] / "best.pt"
     agent = load_agent(kept)
-    result = validate(agent, MapPool.generate((16, 32), 4, VALIDATION_SEEDS.start), 5)
+    result = validate(agent, MapPool.generate((16, 32), 8, VALIDATION_SEEDS.start), 5)
     summary = {
         "commands": ["cpp-mujoco " + shlex.join(cmd) for _, cmd in runs],
         "agent": str(kept),

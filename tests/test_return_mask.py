@@ -44,10 +44,10 @@ def _reference_home(grid_map) -> np.ndarray:
 
 @pytest.mark.parametrize("name", ["A", "C"])
 def test_the_rule_cell_by_cell(name):
-    """At budget b in cell p an action is safe iff it lands, or b − 1 still pays the way home
-    from where it leads (a rejected action hovers in p). At b = home(p) exactly that leaves the
-    land on a landing cell and the moves one step nearer home; every kept state has a safe
-    action."""
+    """At budget b in cell p an action is safe iff it lands, or it is a move the safety
+    controller accepts and b − 1 still pays the way home from where it leads (a rejected action
+    only hovers: never safe). At b = home(p) exactly that leaves the land on a landing cell and
+    the moves one step nearer home; every kept state has a safe action."""
     grid_map = load_map(name)
     graph = build_graph(grid_map)
     home = _reference_home(grid_map)
@@ -60,12 +60,11 @@ def test_the_rule_cell_by_cell(name):
             safe = graph.safe_actions(np.array([p]), np.array([b]))[0]
             for a in range(LAND + 1):
                 if a == LAND:
-                    expected = bool(grid_map.landing[r, c]) or b - 1 >= home[r, c]
+                    expected = bool(grid_map.landing[r, c])
                 else:
                     rr, cc = r + MOVES[a, 0], c + MOVES[a, 1]
                     inside = 0 <= rr < h and 0 <= cc < w and not grid_map.nfz[rr, cc]
-                    after = home[rr, cc] if inside else home[r, c]
-                    expected = b - 1 >= after
+                    expected = inside and b - 1 >= home[rr, cc]
                 assert safe[a] == expected, (name, r, c, b, a)
                 checked += 1
             assert safe.any()

@@ -24,6 +24,8 @@ from cpp_mujoco.grid.safety import SafetyController
 from cpp_mujoco.maps import GridMap
 
 UNREACHABLE = 10**6  # "no path"; two of them still add up inside int32
+# MapGraph.home_after of a rejected action: more than any budget, so the return mask drops it
+REJECTED_AFTER = 1 << 30
 DISTANCE_DTYPE = np.int32
 CACHE_BYTES = 32 << 20  # distance rows kept per map
 _CHUNK_BYTES = 16 << 20  # scipy's float64 rows computed at once
@@ -144,9 +146,13 @@ class MapGraph:
     @cached_property
     def home_after(self) -> np.ndarray:
         """(H·W, 5): actions still needed to be landed after taking action a in cell p — 0 if it
-        lands, else ``home`` of the cell it leads to (a rejected action hovers: p's own)."""
+        lands, else ``home`` of the cell it leads to; :data:`REJECTED_AFTER` (never paid) for an
+        action the safety controller rejects: it only hovers, costing a unit for nothing, and a
+        greedy policy that picks it once picks it again in the same state until the budget is
+        spent (measured: the general agent hovered on a landing cell for 70 of 75 units)."""
         after = self.home[self.safety.next_cell]
         after[self.safety.lands] = 0
+        after[~self.safety.accepted] = REJECTED_AFTER
         after.flags.writeable = False
         return after
 
@@ -155,9 +161,9 @@ class MapGraph:
         budget after the action (every action costs one unit) covers :attr:`home_after`.
 
         The return rule of the safe greedy planner (its invariant ``budget >= home[p]``) as an
-        action set: in a state that keeps the invariant some action is always safe (the land on
-        a landing cell, else the move one step nearer home), so a policy choosing only among
-        these lands every calm-air episode."""
+        action set, among the actions the safety controller accepts: in a state that keeps the
+        invariant some action is always safe (the land on a landing cell, else the move one step
+        nearer home), so a policy choosing only among these lands every calm-air episode."""
         budget = np.asarray(budget).reshape(-1, 1)
         return self.home_after[np.asarray(cells).reshape(-1)] <= budget - 1
 
