@@ -1,0 +1,31 @@
+"""scripts/agent_loops.py: the longest hover or back-and-forth run in a trajectory, and the
+script's report on a map set."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+
+SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "agent_loops.py"
+spec = importlib.util.spec_from_file_location("agent_loops", SCRIPT)
+agent_loops = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(agent_loops)
+
+
+def test_the_longest_cycle_run():
+    run = agent_loops.longest_cycle_run
+    assert run(np.array([1, 2, 3, 4, -1, -1])) == 0  # a straight flight
+    assert run(np.array([1, 2, 1, 2, 1, 2, 3, -1])) == 4  # a back-and-forth, then on
+    assert run(np.array([5, 5, 5, 5, 5])) == 3  # a hover
+    assert run(np.array([1, 2, 1, 9, 8, 9, 8, 9, 8, 9, 7])) == 5  # the longer of two runs
+    assert run(np.array([3, -1])) == 0
+
+
+def test_the_report_names_its_set_policy_and_counts(capsys):
+    assert agent_loops.main(["--map-set", "heldout16-v1", "--first", "1", "--agent", "A"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["map_set"]["name"] == "heldout16-v1" and report["map_set"]["evaluated"] == 1
+    assert report["policy"] == "ddqn-A" and report["digest"]
+    assert 0 <= report["cycling_episodes"] <= report["episodes"] > 0
+    assert report["worst_maps"][0]["map"] == "gen16-s1000000"
