@@ -40,11 +40,17 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from cpp_mujoco.agent.general_network import POSITION_CHANNEL, check_network_kwargs, num_scalars
-from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL, dense_head
+from cpp_mujoco.agent.general_network import check_network_kwargs, num_scalars
+from cpp_mujoco.agent.network import (
+    IN_CHANNELS,
+    LANDING_CHANNEL,
+    NFZ_CHANNEL,
+    POSITION_CHANNEL,
+    TARGET_CHANNEL,
+    dense_head,
+)
 
 ARCHITECTURE = "general-fcn"  # what a checkpoint of this network records under "architecture"
-LANDING_CHANNEL, TARGET_CHANNEL = 0, 1
 EXTRA_CHANNELS = 3  # in-map mask, row offset, column offset from the UAV
 FINE_BLOCKS = 2  # residual 3×3 layers after the stem, at full resolution
 FINE_RADIUS = 1 + FINE_BLOCKS  # cells the full-resolution features see in each direction

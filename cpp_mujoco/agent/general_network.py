@@ -33,11 +33,10 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL, dense_head
+from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL, POSITION_CHANNEL, dense_head
 from cpp_mujoco.agent.target_input import NUM_FEATURES as TARGET_FEATURES
 from cpp_mujoco.agent.target_input import moves_to_unseen
 
-POSITION_CHANNEL = 4
 ARCHITECTURE = "general"  # what a checkpoint of this network records under "architecture"
 # network_kwargs a checkpoint may hold: name → (smallest value, largest value)
 KWARG_RANGES = {

@@ -28,7 +28,7 @@ from cpp_mujoco.agent.home_input import moves_home
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 
 IN_CHANNELS = 5  # landing, target, nfz, coverage, position
-NFZ_CHANNEL = 2
+LANDING_CHANNEL, TARGET_CHANNEL, NFZ_CHANNEL, COVERAGE_CHANNEL, POSITION_CHANNEL = range(5)
 # the wind inputs are m/s × this. Like the raw budget (25..75, see TrainConfig.budget_scale) they
 # must not be small beside 4,096 conv features: measured on map A, wind / 10 m/s left the policy
 # flying its calm tour in a steady 9 m/s wind (42 % landing at budget 45 after 6,000 updates)

@@ -22,11 +22,16 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
-from cpp_mujoco.agent.network import NFZ_CHANNEL
+from cpp_mujoco.agent.network import (
+    COVERAGE_CHANNEL,
+    NFZ_CHANNEL,
+    POSITION_CHANNEL,
+    TARGET_CHANNEL,
+)
 from cpp_mujoco.grid.actions import MOVES
+from cpp_mujoco.grid.mdp import GridConfig
 
-TARGET_CHANNEL, COVERAGE_CHANNEL, POSITION_CHANNEL = 1, 3, 4
-FOV_SIDE = 3  # the paper's camera footprint: the 3×3 cells around the UAV (GridConfig default)
+FOV_SIDE = GridConfig.fov_side  # the paper's camera footprint: the 3×3 cells around the UAV
 NUM_FEATURES = len(MOVES)  # the four moves, then the UAV's own cell
 
 
