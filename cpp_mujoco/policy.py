@@ -150,4 +150,8 @@ def policy_identity(policy: object) -> dict[str, Any]:
         out["network"] = dict(kwargs)
     if hasattr(policy, "return_mask"):
         out["return_mask"] = bool(policy.return_mask)
+        if policy.return_mask:
+            from cpp_mujoco.grid.graph import RETURN_RULE
+
+            out["return_rule"] = RETURN_RULE
     return out

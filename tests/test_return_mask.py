@@ -19,7 +19,7 @@ from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.episode import run_batch
 from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.grid.actions import LAND, MOVES
-from cpp_mujoco.grid.graph import build_graph
+from cpp_mujoco.grid.graph import RETURN_RULE, build_graph
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.map_generator import generate_from_seed
 from cpp_mujoco.maps import load_map
@@ -213,6 +213,15 @@ def test_agent_files_carry_the_mask_and_old_ones_fly_without(masked_run, tmp_pat
     atomic_save(state, tmp_path / "old.pt")
     assert not load_agent(tmp_path / "old.pt").return_mask
     assert not load_agent("A").return_mask  # the paper's agents
+
+
+def test_results_name_the_mask_and_its_rule(masked_run):
+    out, trainer = masked_run
+    agent = load_agent(out / "agent.pt")
+    result = evaluate(agent, trainer.pool.maps[0], budgets=[25], config=trainer.pool.configs[0])
+    policy = result.conditions["policy"]
+    assert policy["return_mask"] and policy["return_rule"] == RETURN_RULE
+    assert "return_rule" not in evaluate(load_agent("A"), "A", budgets=[25]).conditions["policy"]
 
 
 def test_init_from_starts_from_a_general_agents_weights(masked_run, tmp_path):

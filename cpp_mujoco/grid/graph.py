@@ -26,6 +26,9 @@ from cpp_mujoco.maps import GridMap
 UNREACHABLE = 10**6  # "no path"; two of them still add up inside int32
 # MapGraph.home_after of a rejected action: more than any budget, so the return mask drops it
 REJECTED_AFTER = 1 << 30
+# what results record of the return mask's rule (policy_identity): the same agent file flies
+# differently under another rule, so a changed rule gets a new name here
+RETURN_RULE = "safe-actions-v2 (accepted actions whose way home is paid; v1 kept rejected ones)"
 DISTANCE_DTYPE = np.int32
 CACHE_BYTES = 32 << 20  # distance rows kept per map
 _CHUNK_BYTES = 16 << 20  # scipy's float64 rows computed at once
