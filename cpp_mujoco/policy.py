@@ -151,7 +151,10 @@ def policy_identity(policy: object) -> dict[str, Any]:
     if hasattr(policy, "return_mask"):
         out["return_mask"] = bool(policy.return_mask)
         if policy.return_mask:
-            from cpp_mujoco.grid.graph import RETURN_RULE
+            from cpp_mujoco.grid.return_rule import RETURN_RULE
 
             out["return_rule"] = RETURN_RULE
+            margin = getattr(policy, "wind_margin", None)  # what the rule keeps in wind
+            if margin is not None:
+                out["wind_margin"] = {k: float(v) for k, v in vars(margin).items()}
     return out

@@ -19,8 +19,9 @@ from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.episode import run_batch
 from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.grid.actions import LAND, MOVES
-from cpp_mujoco.grid.graph import RETURN_RULE, build_graph
+from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.grid.mdp import GridMDP
+from cpp_mujoco.grid.return_rule import RETURN_RULE
 from cpp_mujoco.map_generator import generate_from_seed
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner

@@ -17,6 +17,7 @@ from cpp_mujoco.agent.checkpoint import CheckpointError, load_checkpoint, networ
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import QNetwork
 from cpp_mujoco.agent.policy import GreedyAgent, MapSizeError
+from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.io import resolve_named_file
 
 BUNDLED_DIR = Path(__file__).resolve().parent / "bundled"
@@ -48,6 +49,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
     net = network_from_checkpoint(obj, str(where.path))
     # an agent trained with the return mask acts with it; files from before the option had none
     return_mask = bool((obj.get("config") or {}).get("return_mask", False))
+    wind_margin = _wind_margin((obj.get("config") or {}).get("wind_planner_sigmas"), where.path)
     return GreedyAgent(
         net,
         obj["budget_scale"],
@@ -63,7 +65,18 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
             "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
         },
         return_mask=return_mask,
+        wind_margin=wind_margin,
     )
+
+
+def _wind_margin(sigmas, path) -> ReturnMargin | None:
+    """The margin a masked agent's wind planners kept (its config's ``wind_planner_sigmas``),
+    which its return rule keeps in wind; None for a file without one."""
+    if sigmas is None:
+        return None
+    if isinstance(sigmas, bool) or not isinstance(sigmas, (int, float)) or not 0 <= sigmas < 100:
+        raise CheckpointError(f"{path}: config wind_planner_sigmas {sigmas!r} is not a margin")
+    return ReturnMargin(gusty_sigmas=float(sigmas))
 
 
 __all__ = [

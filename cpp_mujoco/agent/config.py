@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
+from typing import ClassVar
 
 from cpp_mujoco.grid.mdp import GridConfig, Rewards
 from cpp_mujoco.grid.spaces import MAX_WIND
@@ -163,11 +164,19 @@ class TrainConfig:
             )
         self.wind  # noqa: B018 - GridWind checks the wind options now, before any run folder
         self._check_backend()
-        if self.return_mask and (self.wind_max_speed or self.backend != "grid"):
+        if self.return_mask and (self.wind_max_speed and not self.MASK_IN_WIND):
             raise ValueError(
-                "return_mask counts moves, as in calm grid air; in wind or physics a move costs "
-                "more (use the wind planners as teachers, or the return guard)"
+                "the per-map agent's return_mask is for calm grid air (use the wind planners as "
+                "teachers in wind; the general agent masks in wind too)"
             )
+        if self.return_mask and self.backend != "grid":
+            raise ValueError(
+                "return_mask decides from the grid's budget units; in physics use the return guard"
+            )
+
+    # whether this agent's return mask may run in the grid's wind option (the general agent's
+    # does: grid/return_rule.py prices the way home at the observed wind)
+    MASK_IN_WIND: ClassVar[bool] = False
 
     def _check_backend(self) -> None:
         if self.backend not in BACKENDS:

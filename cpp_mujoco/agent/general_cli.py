@@ -2,7 +2,8 @@
 
 Registered like ``train`` (:mod:`cpp_mujoco.agent.cli`): every :class:`GeneralTrainConfig` field
 is an option, the learning settings with ``train``'s help text; the fields the general run does
-not use (``--map``, budgets, ``--init-from``, the wind option) are not options. Exit codes as
+not use (``--map``, budgets, the physics fine-tuning) are not options; the grid's wind option
+(``--wind-max-speed``) is, with the return mask priced at the observed wind. Exit codes as
 ``train``'s: 0 done, 2 bad input, 130/143 stopped by a signal after saving a checkpoint.
 """
 
@@ -19,10 +20,10 @@ from cpp_mujoco.agent.general_config import ARCHITECTURES, UNUSED, GeneralTrainC
 from cpp_mujoco.cli import TRAIN_GENERAL_HELP as HELP  # the light parser's line: the same
 
 COMMAND = "train-general"
-# the per-map trainer's grid wind option and its physics fine-tuning are not the general agent's
+# the per-map trainer's physics fine-tuning is not the general agent's (its grid wind option is)
 PHYSICS = ("backend", "physics_wind_speed", "physics_wind_directions", "physics_turbulence",
            "physics_calm_share", "physics_threads")  # fmt: skip
-EXCLUDED = (*UNUSED, "wind_max_speed", "wind_calm_fraction", "wind_gust_scale", *PHYSICS)
+EXCLUDED = (*UNUSED, *PHYSICS)
 _GENERAL_HELP = {
     "sizes": "map sides trained together, each flown with its size class's budgets",
     "maps_per_size": "generated training maps of each size (seeds map-seed on)",

@@ -126,8 +126,8 @@ class GeneralTrainConfig(TrainConfig):
             raise ValueError(f"local_size {self.local_size} exceeds the centred map's side")
         check_seeds(self.map_seed, self.maps_per_size, "training map", TRAIN_SEEDS)
         check_seeds(self.val_seed, self.val_maps_per_size, "validation map", VALIDATION_SEEDS)
-        if self.wind_max_speed:
-            raise ValueError("the general agent has no wind option yet (wind_max_speed must be 0)")
+
+    MASK_IN_WIND = True  # grid/return_rule.py prices the way home at the observed wind
 
     @classmethod
     def from_dict(cls, data: dict) -> GeneralTrainConfig:
@@ -154,5 +154,6 @@ class GeneralTrainConfig(TrainConfig):
             **kwargs,
             "max_side": self.max_side or max(self.sizes),
             "home_input": self.home_input,
+            "wind_inputs": bool(self.wind_max_speed),  # a wind agent observes the wind
             **({"target_input": True} if self.target_input else {}),
         }

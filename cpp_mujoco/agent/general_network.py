@@ -48,6 +48,7 @@ KWARG_RANGES = {
     "hidden": (1, 16384),
     "num_hidden": (0, 16),
 }
+WIND_SCALARS = 3  # east, north and speed (network.scalar_inputs)
 INPUT_FLAGS = ("wind_inputs", "home_input")  # optional bool network_kwargs: the scalar inputs
 
 
@@ -247,9 +248,23 @@ def check_general_kwargs(kwargs: object) -> str | None:
     return check_network_kwargs(kwargs, KWARG_RANGES, "general", (*INPUT_FLAGS, "target_input"))
 
 
+def widen_for_wind_inputs(state: dict[str, torch.Tensor], network: GeneralQNetwork) -> dict:
+    """Weights of ``network``'s design without the wind inputs → ``network``'s, giving the very
+    same Q-values in any wind: three zero columns after the budget's (the scalar inputs are the
+    budget, the wind's three, the moves home); training in wind then learns to use them."""
+    key = "head.0.weight"
+    weight = state[key]
+    total = network.head[0].weight.shape[1]
+    if not network.wind_inputs or weight.shape[1] != total - WIND_SCALARS:
+        raise ValueError(f"{key} has {weight.shape[1]} inputs, expected {total - WIND_SCALARS}")
+    at = network.features_before_target - network.num_scalars + 1  # after the budget
+    zeros = weight.new_zeros((weight.shape[0], WIND_SCALARS))
+    return {**state, key: torch.cat([weight[:, :at], zeros, weight[:, at:]], dim=1)}
+
+
 def num_scalars(wind_inputs: bool, home_input: bool) -> int:
     """Width of the scalar inputs: the budget, 3 for the wind, 1 for the moves home."""
-    return 1 + 3 * bool(wind_inputs) + bool(home_input)
+    return 1 + WIND_SCALARS * bool(wind_inputs) + bool(home_input)
 
 
 def check_network_kwargs(

@@ -25,7 +25,7 @@ from __future__ import annotations
 import os
 import time
 from collections import deque
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +43,7 @@ from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_eval import ValidationResult, validate
 from cpp_mujoco.agent.general_network import ARCHITECTURE as GENERAL
-from cpp_mujoco.agent.general_network import GeneralQNetwork
+from cpp_mujoco.agent.general_network import GeneralQNetwork, widen_for_wind_inputs
 from cpp_mujoco.agent.map_pool import MapPool, MapwiseGuide
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay, record_pool_demonstrations
@@ -55,7 +55,10 @@ from cpp_mujoco.agent.training_run import run_in_folder
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
 
-REFERENCE_PLANNER = "safe-greedy"  # flown on the validation maps beside the final agent
+# flown on the validation maps beside the final agent: in the wind option the planner that prices
+# moves with the observed wind (the calm one's unit costs crash there)
+REFERENCE_PLANNER = "safe-greedy"
+WIND_REFERENCE_PLANNER = "safe-greedy-wind"
 # a resumed general run may also change these: they schedule it, not what it learns
 GENERAL_RESUMABLE = RESUMABLE_CHANGES | {"final_budget_step"}
 # GeneralTrainConfig.architecture → (network class, what its checkpoints record)
@@ -78,17 +81,25 @@ def initial_general_weights(config: GeneralTrainConfig) -> dict | None:
     network = build_network(config)
     arch, kwargs = NETWORKS[config.architecture][1], network.kwargs
     stored = state["network_kwargs"]
-    widen = config.target_input and isinstance(stored, dict) and "target_input" not in stored
+    known = isinstance(stored, dict)
+    widen = config.target_input and known and "target_input" not in stored
     if widen:  # a network without the moves to new targets: they start at zero weight
         kwargs = {k: v for k, v in kwargs.items() if k != "target_input"}
+    calm = config.architecture == "global-local" and bool(kwargs.get("wind_inputs"))
+    calm = calm and known and stored.get("wind_inputs") is False
+    if calm:  # a calm-air network into a wind run: the wind inputs start at zero weight
+        kwargs = {**kwargs, "wind_inputs": False}
     if not is_general(state) or state["architecture"] != arch or stored != kwargs:
         raise CheckpointError(
             f"{path} holds {state.get('architecture', 'paper')} {stored}; "
             f"--init-from needs this run's network: {arch} {kwargs}"
         )
+    weights = state["network"]
+    if calm:
+        weights = widen_for_wind_inputs(weights, network)
     if widen:
-        return widen_for_target_input(state["network"], network.features_before_target)
-    return state["network"]
+        return widen_for_target_input(weights, network.features_before_target)
+    return weights
 
 
 def training_pool(config: GeneralTrainConfig, per_size: int | None = None) -> MapPool:
@@ -115,8 +126,13 @@ class GeneralTrainer(Trainer):
         set_threads(c.threads)
         cores = os.cpu_count() or 1
         self.tuner = ThreadTuner((1, cores)) if c.threads == 0 and cores > 1 else None
-        self.pool = training_pool(c)
-        self.val_pool = MapPool.generate(c.sizes, c.val_maps_per_size, c.val_seed)
+        # in the wind option (c.wind; None: calm air) every training, demonstration and
+        # validation episode draws its wind, and the return rule keeps the wind planners'
+        # margin; training flies the config's crash reward, validation the paper's
+        rewards = c.grid_config.rewards
+        self.pool = training_pool(c).flown_with(c.wind, c.wind_margin, rewards)
+        val_pool = MapPool.generate(c.sizes, c.val_maps_per_size, c.val_seed)
+        self.val_pool = val_pool.flown_with(c.wind, c.wind_margin)
         self.env = MultiMapVectorEnv(self.pool, c.num_envs, c.episodes_per_map, c.named_share)
         torch.manual_seed(c.seed)
         self._build_networks()
@@ -166,13 +182,14 @@ class GeneralTrainer(Trainer):
         sizes = "+".join(str(s) for s in self.config.sizes)
         named = f" + {', '.join(self.config.named_maps)}" if self.config.named_maps else ""
         generated = len(self.pool) - len(self.pool.named)
-        return f"general ({generated} generated maps{named}, sizes {sizes})"
+        wind = f", wind up to {self.config.wind_max_speed:g} m/s" if self.config.wind else ""
+        return f"general ({generated} generated maps{named}, sizes {sizes}{wind})"
 
     # ------------------------------------------------------------------ evaluation and logging
     def agent(self) -> GreedyAgent:
         return GreedyAgent(
             self.online, self.config.input_budget_scale, self.device, name="ddqn-general",
-            return_mask=self.config.return_mask,
+            return_mask=self.config.return_mask, wind_margin=self.config.wind_margin,
         )  # fmt: skip
 
     def evaluate(self, full: bool = False) -> ValidationResult:
@@ -184,13 +201,16 @@ class GeneralTrainer(Trainer):
             res = self.last_eval[2]  # these weights were just validated on these budgets
         else:
             res = validate(self.agent(), self.val_pool, step)
+            wind = self.val_pool.wind
             res.conditions = {"validation_maps": self.val_pool.identity(),
-                              "train_maps": self.pool.identity()}  # fmt: skip
+                              "train_maps": self.pool.identity(),
+                              "wind": None if wind is None else asdict(wind)}  # fmt: skip
             self.online.train()
             self.last_eval = (self.updates, step, res)
-        if full and REFERENCE_PLANNER not in res.references:
-            ref = validate(make_planner(REFERENCE_PLANNER), self.val_pool, step)
-            res.references[REFERENCE_PLANNER] = ref.summary()
+        reference = WIND_REFERENCE_PLANNER if c.wind else REFERENCE_PLANNER
+        if full and reference not in res.references:
+            planner = make_planner(reference, c.wind_margin)
+            res.references[reference] = validate(planner, self.val_pool, step).summary()
         return res
 
     def log_title(self) -> str:

@@ -24,6 +24,8 @@ import numpy as np
 
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.graph import build_graph
+from cpp_mujoco.grid.return_rule import paid_actions
+from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.maps import MAX_SIDE, GridMap
 
 # the moves of a cell with no way home. Never the UAV's: it starts on a landing cell and flies
@@ -107,10 +109,15 @@ def moves_home(maps: np.ndarray, position: np.ndarray) -> np.ndarray:
     return _at_cells(maps, position, 0)
 
 
-def safe_actions(maps: np.ndarray, position: np.ndarray, budget: np.ndarray) -> np.ndarray:
-    """(N, 5) bool: the return rule (:meth:`MapGraph.safe_actions <cpp_mujoco.grid.graph.
-    MapGraph.safe_actions>`) for a batch of observations — ``maps`` one (3,H,W) map shared by the
-    batch or (N,3,H,W) per row, ``position`` the (N,H,W) one-hot cells, ``budget`` (N,) or (N,1)
-    the remaining budget."""
-    after = _at_cells(maps, position, 1)
-    return after <= np.asarray(budget).reshape(after.shape[0], 1) - 1
+def safe_actions(
+    maps: np.ndarray,
+    position: np.ndarray,
+    budget: np.ndarray,
+    wind: np.ndarray | None = None,
+    margin: ReturnMargin | None = None,
+) -> np.ndarray:
+    """(N, 5) bool: the return rule (:func:`~cpp_mujoco.grid.return_rule.paid_actions`) for a
+    batch of observations — ``maps`` one (3,H,W) map shared by the batch or (N,3,H,W) per row,
+    ``position`` the (N,H,W) one-hot cells, ``budget`` (N,) or (N,1) the remaining budget,
+    ``wind`` (N,2) the observed wind (None: calm air) and ``margin`` the wind planners'."""
+    return paid_actions(_at_cells(maps, position, 1), budget, wind, margin)

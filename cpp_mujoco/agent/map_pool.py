@@ -17,13 +17,16 @@ network); coverage is stored as packed bits of that padded layout (:meth:`MapPoo
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from cpp_mujoco.agent.home_input import home_after, home_field
 from cpp_mujoco.agent.network import NFZ_CHANNEL
-from cpp_mujoco.grid.mdp import GridConfig
+from cpp_mujoco.grid.mdp import GridConfig, Rewards
+from cpp_mujoco.grid.return_rule import paid_actions
+from cpp_mujoco.grid.way_home import ReturnMargin
+from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.map_generator import generate_from_seed
 from cpp_mujoco.map_sets import HELDOUT_SEEDS, heldout_set_of
 from cpp_mujoco.maps import GridMap
@@ -44,6 +47,8 @@ class MapPool:
     side: int
     configs: list[GridConfig]
     layers: np.ndarray
+    # the margin the return rule keeps in wind (:meth:`flown_with`; None: ReturnMargin's default)
+    margin: ReturnMargin | None = None
     # each map's moves home per padded cell, filled on first use (:meth:`moves_home`; −1: not yet)
     _home: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
     # and its actions home after each action per padded cell (:meth:`safe_actions`)
@@ -95,6 +100,25 @@ class MapPool:
         seeds = self.seeds + [NAMED_SEED] * len(named)
         return MapPool._of(self.maps + list(named), seeds, self.side)
 
+    def flown_with(
+        self,
+        wind: GridWind | None,
+        margin: ReturnMargin | None = None,
+        rewards: Rewards | None = None,
+    ) -> MapPool:
+        """The same maps flown in the grid's wind option ``wind`` (None: calm air) — every env,
+        demonstration and validation episode on the pool draws its wind from it — with
+        ``rewards`` (None: the paper's); ``margin``: what the return rule keeps in wind
+        (:meth:`safe_actions`)."""
+        changes = {"wind": wind, **({"rewards": rewards} if rewards is not None else {})}
+        configs = [replace(config, **changes) for config in self.configs]
+        return MapPool(self.maps, self.seeds, self.side, configs, self.layers, margin)
+
+    @property
+    def wind(self) -> GridWind | None:
+        """The wind option the pool's maps are flown in (None: calm air)."""
+        return self.configs[0].wind if self.configs else None
+
     @property
     def named(self) -> np.ndarray:
         """Indices of the maps that were not generated (:meth:`with_named`)."""
@@ -138,16 +162,19 @@ class MapPool:
             self._home[m] = home_field(self.layers[m])
         return self._home[map_index, np.asarray(position).reshape(-1)]
 
-    def safe_actions(self, map_index: np.ndarray, position: np.ndarray, budget) -> np.ndarray:
-        """(b, 5) bool: the return rule (:func:`~cpp_mujoco.agent.home_input.safe_actions`) for
-        stored states — map by index, flat padded cell, remaining budget."""
+    def safe_actions(
+        self, map_index: np.ndarray, position: np.ndarray, budget, wind=None
+    ) -> np.ndarray:
+        """(b, 5) bool: the return rule (:func:`~cpp_mujoco.grid.return_rule.paid_actions`) for
+        stored states — map by index, flat padded cell, remaining budget, observed wind (None:
+        calm air), with the pool's :attr:`margin`."""
         if self._after is None:
             self._after = np.full((len(self), self.side * self.side, 5), -1, dtype=np.int32)
         map_index = np.asarray(map_index).reshape(-1)
         for m in np.unique(map_index[self._after[map_index, 0, 0] < 0]):
             self._after[m] = home_after(self.layers[m])
         after = self._after[map_index, np.asarray(position).reshape(-1)]
-        return after <= np.asarray(budget).reshape(-1, 1) - 1
+        return paid_actions(after, budget, wind, self.margin)
 
     def grids(self, map_index: np.ndarray, coverage_bits: np.ndarray, position: np.ndarray):
         """(b,5,side,side) float32 network input of stored states: the map's layers, the

@@ -60,7 +60,9 @@ class MultiMapReplay(ReplayBuffer):
         return grid, self.budget[t, e][:, None], self.wind[t, e], home
 
     def _safe(self, t: np.ndarray, e: np.ndarray) -> np.ndarray:
-        return self.pool.safe_actions(self.map_index[t, e], self.position[t, e], self.budget[t, e])
+        return self.pool.safe_actions(
+            self.map_index[t, e], self.position[t, e], self.budget[t, e], self.wind[t, e]
+        )
 
     ARRAYS = ("map_index", "coverage", "position", "budget", "wind", "action", "reward",
               "terminated")  # fmt: skip
@@ -117,7 +119,7 @@ class PooledDemonstrations:
             "return": self.ret[i],
             "next_obs": self._states(nxt),
             "next_safe": self.pool.safe_actions(
-                self.map_index[nxt], self.position[nxt], self.budget[nxt]
+                self.map_index[nxt], self.position[nxt], self.budget[nxt], self.wind[nxt]
             ),
             "discount": self.discount[i],
         }

@@ -12,6 +12,7 @@ from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
+from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.policy import as_batch
 
 FORWARD_CELLS = 2**20  # observations per forward pass × map cells: caps the conv activations
@@ -24,7 +25,8 @@ class MapSizeError(ValueError):
 class GreedyAgent:
     """``act(obs)``: one observation dict (``coverage`` of shape (H, W)) → int; a batch (leading
     dim N) → np.ndarray of N ints. ``network`` is the torch Q-network; ``return_mask``: act only
-    among the return rule's safe actions (agents trained with it)."""
+    among the return rule's safe actions (agents trained with it), in an observed wind with
+    ``wind_margin`` (the margin of the wind planners it learned from; None: their default)."""
 
     def __init__(
         self,
@@ -34,9 +36,11 @@ class GreedyAgent:
         name: str = "ddqn",
         metadata: dict | None = None,
         return_mask: bool = False,
+        wind_margin: ReturnMargin | None = None,
     ):
         self.network = network.to(device).eval()
         self.return_mask = bool(return_mask)
+        self.wind_margin = wind_margin
         self.budget_scale = float(budget_scale)
         self.device = torch.device(device)
         self.name = name
@@ -82,9 +86,9 @@ class GreedyAgent:
             obs = as_batch(obs)
         q = torch.from_numpy(self.q_values(obs))
         if self.return_mask:
-            q = mask_unsafe(
-                q, torch.from_numpy(safe_actions(obs["map"], obs["position"], obs["budget"]))
-            )
+            wind = obs.get("wind")
+            safe = safe_actions(obs["map"], obs["position"], obs["budget"], wind, self.wind_margin)
+            q = mask_unsafe(q, torch.from_numpy(safe))
         actions = q.argmax(dim=1).numpy()
         return int(actions[0]) if single else actions
 

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from cpp_mujoco.agent.home_input import home_after, home_field
+from cpp_mujoco.grid.return_rule import paid_actions
 
 
 class ReplayBuffer:
@@ -123,8 +124,9 @@ class ReplayBuffer:
 
     def _safe(self, t: np.ndarray, e: np.ndarray) -> np.ndarray:
         """(b, 5) bool: the return rule's actions (:func:`~cpp_mujoco.agent.home_input.
-        safe_actions`) in rows ``t`` of envs ``e``, for a masked target's bootstrap states."""
-        return self.after[self.position[t, e]] <= self.budget[t, e][:, None] - 1
+        safe_actions`) in rows ``t`` of envs ``e``, for a masked target's bootstrap states (the
+        per-map agent masks in calm air only: :class:`~cpp_mujoco.agent.config.TrainConfig`)."""
+        return paid_actions(self.after[self.position[t, e]], self.budget[t, e], self.wind[t, e])
 
     # ------------------------------------------------------------------ checkpointing
     def state_dict(self) -> dict:

@@ -120,7 +120,8 @@ class Trainer:
             q = self.online(grid, scalars).cpu()
         if c.return_mask:  # the soft-max samples among the actions that keep the way home paid
             o = self.obs
-            q = mask_unsafe(q, torch.from_numpy(safe_actions(o["map"], o["position"], o["budget"])))
+            safe = safe_actions(o["map"], o["position"], o["budget"], o["wind"], c.wind_margin)
+            q = mask_unsafe(q, torch.from_numpy(safe))
         actions = softmax_actions(q, c.beta, self.torch_gen).numpy()
         guided = self.guided_envs()
         if guided:

@@ -20,15 +20,13 @@ from scipy.sparse.csgraph import dijkstra
 
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.coverage import square_fov_cells, square_fov_counts
+from cpp_mujoco.grid.return_rule import paid_actions
 from cpp_mujoco.grid.safety import SafetyController
 from cpp_mujoco.maps import GridMap
 
 UNREACHABLE = 10**6  # "no path"; two of them still add up inside int32
 # MapGraph.home_after of a rejected action: more than any budget, so the return mask drops it
 REJECTED_AFTER = 1 << 30
-# what results record of the return mask's rule (policy_identity): the same agent file flies
-# differently under another rule, so a changed rule gets a new name here
-RETURN_RULE = "safe-actions-v2 (accepted actions whose way home is paid; v1 kept rejected ones)"
 DISTANCE_DTYPE = np.int32
 CACHE_BYTES = 32 << 20  # distance rows kept per map
 _CHUNK_BYTES = 16 << 20  # scipy's float64 rows computed at once
@@ -167,8 +165,7 @@ class MapGraph:
         action set, among the actions the safety controller accepts: in a state that keeps the
         invariant some action is always safe (the land on a landing cell, else the move one step
         nearer home), so a policy choosing only among these lands every calm-air episode."""
-        budget = np.asarray(budget).reshape(-1, 1)
-        return self.home_after[np.asarray(cells).reshape(-1)] <= budget - 1
+        return paid_actions(self.home_after[np.asarray(cells).reshape(-1)], budget)
 
     @cached_property
     def toward_targets(self) -> np.ndarray:
