@@ -336,12 +336,14 @@ def _run_chunk(policy, grid_map, starts, budgets, config, chunk, on_step, bar) -
     mdp = GridMDP(grid_map, n, config)
     mdp.reset(np.random.default_rng(0), start=starts, budget=budgets)
     returns = np.zeros(n)
+    taken = np.zeros(n, dtype=np.int64)  # actions: in the wind option a unit is not an action
     trail = [mdp.position.copy()]
 
     def record(obs, actions, out, active) -> None:
         if on_step is not None:
             on_step(obs, actions, out, active)
         returns[:] += out.reward
+        taken[:] += active
         trail.append(np.where(active, mdp.position, -1))
         bar.update(int((active & mdp.done).sum()))
 
@@ -349,7 +351,7 @@ def _run_chunk(policy, grid_map, starts, budgets, config, chunk, on_step, bar) -
     return {
         "landed": mdp.landed.copy(),
         "coverage": mdp.seen_targets / mdp.num_targets,
-        "steps": mdp.steps.copy(),
+        "steps": taken,
         "returns": returns,
         "trajectories": np.stack(trail, axis=1),
     }

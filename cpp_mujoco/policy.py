@@ -142,7 +142,8 @@ def policy_name(policy: object) -> str:
 def policy_identity(policy: object) -> dict[str, Any]:
     """What results record of a trained agent beyond its name (empty for a planner): the file
     it was loaded from and its digest, its network and inputs, whether it acts with the return
-    mask — two files of one name, or one file with and without the mask, never read alike."""
+    mask and the revisit mask — two files of one name, or one file with and without a mask, never
+    read alike."""
     meta = getattr(policy, "metadata", None) or {}
     out = {k: meta[k] for k in ("source", "digest", "bundled", "architecture") if k in meta}
     kwargs = getattr(getattr(policy, "network", None), "kwargs", None)
@@ -157,4 +158,10 @@ def policy_identity(policy: object) -> dict[str, Any]:
             margin = getattr(policy, "wind_margin", None)  # what the rule keeps in wind
             if margin is not None:
                 out["wind_margin"] = {k: float(v) for k, v in vars(margin).items()}
+    if hasattr(policy, "revisit_mask"):
+        out["revisit_mask"] = bool(policy.revisit_mask)
+        if policy.revisit_mask:
+            from cpp_mujoco.agent.revisit_mask import REVISIT_RULE
+
+            out["revisit_rule"] = REVISIT_RULE
     return out

@@ -11,6 +11,7 @@ import torch
 
 from cpp_mujoco.agent import CheckpointError, load_agent
 from cpp_mujoco.agent.checkpoint import atomic_save, load_checkpoint
+from cpp_mujoco.agent.demonstrations import record_demonstrations
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_network import GeneralQNetwork, widen_for_wind_inputs
 from cpp_mujoco.agent.general_train import GeneralTrainer, initial_general_weights
@@ -231,3 +232,31 @@ def test_a_wind_run_starts_from_a_calm_general_agent(wind_run, tmp_path):
     )
     with pytest.raises(CheckpointError, match="this run's network"):
         initial_general_weights(wind_file)  # a wind network into a calm run: refused
+
+
+def test_demonstrations_keep_every_step_of_episodes_longer_than_the_budget():
+    """At 3 m/s a move costs 0.95 units and a hover 0.91: an episode flies more steps than its
+    budget (the memory was once sized for one unit a step and overflowed on 32×32 maps)."""
+    grid_map = generate_from_seed(7, 32)
+    config = replace(size_config(32), wind=_steady(3.0))
+
+    def north(obs):  # north until the edge, then hovering there: never lands
+        return np.zeros(np.shape(obs["coverage"])[0], dtype=np.int64)
+
+    demo = record_demonstrations(grid_map, config, north, 3, 0.95, [150])
+    flown = evaluate(north, grid_map, budgets=[150], config=config)
+    actions = (flown.trajectories >= 0).sum(axis=1) - 1  # cells visited after the start
+    assert actions.min() > 150 + 3 + 2 and len(demo) == actions.sum()
+    assert demo.memory.action[demo.rows, demo.episodes].max() == 0
+
+
+def test_demonstrations_fly_only_maps_up_to_demo_max_side(tmp_path):
+    config = GeneralTrainConfig(total_updates=1, **{**TINY, "sizes": (16, 32),
+                                "demo_max_side": 16, "named_maps": ("A",),
+                                "named_share": 0.2})  # fmt: skip
+    trainer = GeneralTrainer(config, tmp_path)
+    flown = {int(m) for m in np.unique(trainer.demos.map_index)}
+    assert flown == {0, 6}  # the first generated 16×16 map and the named A; not map 3, 32×32
+    assert all(trainer.pool.maps[m].shape == (16, 16) for m in flown)
+    with pytest.raises(ValueError, match="demo_max_side"):
+        GeneralTrainConfig(**{**TINY, "demo_max_side": 8})

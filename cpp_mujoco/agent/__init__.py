@@ -49,6 +49,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
     net = network_from_checkpoint(obj, str(where.path))
     # an agent trained with the return mask acts with it; files from before the option had none
     return_mask = bool((obj.get("config") or {}).get("return_mask", False))
+    revisit_mask = bool((obj.get("config") or {}).get("revisit_mask", False))
     wind_margin = _wind_margin((obj.get("config") or {}).get("wind_planner_sigmas"), where.path)
     return GreedyAgent(
         net,
@@ -60,12 +61,14 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
             **{k: obj[k] for k in ("train_maps", "validation_maps") if k in obj},  # general
             "architecture": obj.get("architecture", "paper"),
             "return_mask": return_mask,
+            "revisit_mask": revisit_mask,
             "source": str(where.path),
             "bundled": where.bundled,
             "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
         },
         return_mask=return_mask,
         wind_margin=wind_margin,
+        revisit_mask=revisit_mask,
     )
 
 

@@ -49,14 +49,17 @@ def record_demonstrations(
     (``budgets``: default every budget of ``config``; the general agent's pool takes fewer)."""
     budgets = protocol_budgets(config) if budgets is None else budgets
     k = len(protocol_episodes(grid_map, budgets)[0])
-    max_rows = config.max_budget + n_step + 2  # an episode takes at most max_budget steps
-    memory = ReplayBuffer(max_rows * k, k, grid_map.layers, n_step, gamma)
-    recorded = []  # (k,) masks: which episodes were still flying at each row
+    steps = []  # (obs, actions, reward, done, active) of each batched step, stored afterwards
 
     def record(obs, actions, outcome, active) -> None:
-        memory.add(obs, actions, outcome.reward, outcome.terminated | ~active)
-        recorded.append(active)
+        steps.append((obs, actions, outcome.reward, outcome.terminated | ~active, active))
 
     result = evaluate(planner, grid_map, budgets=budgets, config=config, on_step=record)
-    rows, episodes = np.nonzero(np.stack(recorded))
+    # one row per step flown: in calm air an episode takes at most max_budget steps, in the
+    # wind option more (a downwind move costs less than a unit), so the memory is sized after
+    # the flight, never wrapping round
+    memory = ReplayBuffer((len(steps) + n_step + 2) * k, k, grid_map.layers, n_step, gamma)
+    for obs, actions, reward, done, _ in steps:
+        memory.add(obs, actions, reward, done)
+    rows, episodes = np.nonzero(np.stack([active for *_, active in steps]))
     return Demonstrations(memory, rows, episodes, result.landing_ratio, result.coverage_ratio)

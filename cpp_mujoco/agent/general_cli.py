@@ -35,6 +35,8 @@ _GENERAL_HELP = {
     "val_maps_per_size": "validation maps of each size, on which best.pt is chosen",
     "val_seed": "first validation map seed (2,000,000..2,999,999)",
     "demo_maps_per_size": "training maps of each size the demo planner flies (the first ones)",
+    "demo_max_side": "the demo planner flies only maps of sides up to this (0 = all; the wind "
+    "planners take minutes a 32x32 map)",
     "demo_budget_step": "demonstrations fly every n-th budget of each size class",
     "final_budget_step": "the final evaluation's budget step (1 = the full protocol)",
     "architecture": "the network: global-local (Theile et al. 2021: a crop and a pooled view "
@@ -53,6 +55,9 @@ _GENERAL_HELP = {
     "return_mask": "act only among the actions after which the way home is still paid (the "
     "safe greedy planner's return rule), in training and as a policy; --resume keeps the run's "
     "own setting (off for runs from before the option)",
+    "revisit_mask": "as a policy (validation, the agent file), also leave out the moves back "
+    "into a cell flown through since the coverage last grew that shows no unseen target (not "
+    "in training's exploration; off for agents from before the option)",
     "target_input": "the network also reads, for each action, the moves from the cell it leads "
     "to until the 3x3 view holds an unseen target (global-local only; from an --init-from "
     "network without it, the new inputs start at zero weight)",

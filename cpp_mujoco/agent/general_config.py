@@ -45,6 +45,9 @@ class GeneralTrainConfig(TrainConfig):
     # are fewer), every landing cell ×
     # every demo_budget_step-th budget: about 5 MB a 32×32 map at step 10, 1.5 s of beam search
     demo_maps_per_size: int = 32
+    # demonstrations fly only the maps (generated and named) of sides up to this (0: all): the
+    # wind planners take about 5 min a 32×32 map at budget step 20 on one core
+    demo_max_side: int = 0
     demo_budget_step: int = 10
     final_budget_step: int = 1  # the final evaluation's budget step (1: the full protocol)
     # --- network ------------------------------------------------------------------------------
@@ -68,6 +71,11 @@ class GeneralTrainConfig(TrainConfig):
     # act among the return rule's safe actions (TrainConfig.return_mask): on for new general
     # runs — the agent must fly unseen maps home every time; a config stored before reads False
     return_mask: bool = True
+    # as a policy (validation, the final evaluation, the agent file), also leave out the moves
+    # back into a cell flown through since the coverage last grew whose view shows no unseen
+    # target (:mod:`~cpp_mujoco.agent.revisit_mask`); training's exploration never uses it.
+    # A config stored before the option reads False (:meth:`from_dict`): its agent flew without
+    revisit_mask: bool = True
     # global-local only: the network also reads, for each action, the moves from the cell it
     # leads to until the 3×3 view holds an unseen target (:mod:`~cpp_mujoco.agent.target_input`);
     # with --init-from a network without it, the new inputs start at zero weight
@@ -115,6 +123,12 @@ class GeneralTrainConfig(TrainConfig):
             raise ValueError(f"demo_maps_per_size must be >= 0, got {self.demo_maps_per_size}")
         if self.demo_fraction > 0 and self.demo_maps_per_size == 0:
             raise ValueError("demo_fraction > 0 needs demo_maps_per_size >= 1")
+        if self.demo_max_side < 0 or (
+            self.demo_fraction > 0 and self.demo_max_side and self.demo_max_side < min(self.sizes)
+        ):
+            raise ValueError(
+                f"demo_max_side must be 0 (all) or >= the smallest size, got {self.demo_max_side}"
+            )
         if self.max_side and self.max_side < max(self.sizes):
             raise ValueError(f"max_side {self.max_side} is smaller than the largest size")
         if self.local_size % 2 != 1 or min(self.local_size, self.global_size) <= 8:
@@ -131,9 +145,10 @@ class GeneralTrainConfig(TrainConfig):
 
     @classmethod
     def from_dict(cls, data: dict) -> GeneralTrainConfig:
-        """A stored config; one without ``home_input`` or ``return_mask`` is from before them:
-        its run had neither."""
-        return super().from_dict({"home_input": False, "return_mask": False, **data})
+        """A stored config; one without ``home_input``, ``return_mask`` or ``revisit_mask`` is
+        from before them: its run had none of them."""
+        old = {"home_input": False, "return_mask": False, "revisit_mask": False}
+        return super().from_dict({**old, **data})
 
     @property
     def input_budget_scale(self) -> float:

@@ -60,7 +60,7 @@ from cpp_mujoco.planners import make_planner
 REFERENCE_PLANNER = "safe-greedy"
 WIND_REFERENCE_PLANNER = "safe-greedy-wind"
 # a resumed general run may also change these: they schedule it, not what it learns
-GENERAL_RESUMABLE = RESUMABLE_CHANGES | {"final_budget_step"}
+GENERAL_RESUMABLE = RESUMABLE_CHANGES | {"final_budget_step", "revisit_mask"}
 # GeneralTrainConfig.architecture → (network class, what its checkpoints record)
 NETWORKS = {"global-local": (GeneralQNetwork, GENERAL), "fcn": (FCNQNetwork, FCN)}
 
@@ -150,6 +150,8 @@ class GeneralTrainer(Trainer):
             # and every named map
             ids = [k * c.maps_per_size + j for k in range(len(c.sizes)) for j in range(c.demo_maps)]
             ids += [int(i) for i in self.pool.named]
+            if c.demo_max_side:  # only the maps small enough to demonstrate
+                ids = [i for i in ids if max(self.pool.maps[i].shape) <= c.demo_max_side]
             self.demos = record_pool_demonstrations(
                 self.pool, ids, make_planner(c.demo_planner, c.wind_margin), c.n_step, c.gamma,
                 c.demo_budget_step,
@@ -190,6 +192,7 @@ class GeneralTrainer(Trainer):
         return GreedyAgent(
             self.online, self.config.input_budget_scale, self.device, name="ddqn-general",
             return_mask=self.config.return_mask, wind_margin=self.config.wind_margin,
+            revisit_mask=self.config.revisit_mask,
         )  # fmt: skip
 
     def evaluate(self, full: bool = False) -> ValidationResult:

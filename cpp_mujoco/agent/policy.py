@@ -1,6 +1,8 @@
 """A trained agent as a policy: greedy π(s) = argmax_a Q(s, a), for one observation or a batch;
 an agent trained with the return mask takes the argmax over the actions that keep its way home
-paid (:func:`~cpp_mujoco.agent.home_input.safe_actions`), as it was trained to."""
+paid (:func:`~cpp_mujoco.agent.home_input.safe_actions`), as it was trained to; one flown with
+the revisit mask (:mod:`~cpp_mujoco.agent.revisit_mask`) also leaves out the moves back into a
+fruitless cell it has flown through, and keeps that memory per episode (``reset``)."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
+from cpp_mujoco.agent.revisit_mask import RevisitMemory
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.policy import as_batch
 
@@ -26,7 +29,9 @@ class GreedyAgent:
     """``act(obs)``: one observation dict (``coverage`` of shape (H, W)) → int; a batch (leading
     dim N) → np.ndarray of N ints. ``network`` is the torch Q-network; ``return_mask``: act only
     among the return rule's safe actions (agents trained with it), in an observed wind with
-    ``wind_margin`` (the margin of the wind planners it learned from; None: their default)."""
+    ``wind_margin`` (the margin of the wind planners it learned from; None: their default);
+    ``revisit_mask``: nor the moves back into a cell flown through since the coverage last grew
+    that shows no unseen target (:mod:`~cpp_mujoco.agent.revisit_mask`)."""
 
     def __init__(
         self,
@@ -37,10 +42,13 @@ class GreedyAgent:
         metadata: dict | None = None,
         return_mask: bool = False,
         wind_margin: ReturnMargin | None = None,
+        revisit_mask: bool = False,
     ):
         self.network = network.to(device).eval()
         self.return_mask = bool(return_mask)
         self.wind_margin = wind_margin
+        self.revisit_mask = bool(revisit_mask)
+        self.memory = RevisitMemory()
         self.budget_scale = float(budget_scale)
         self.device = torch.device(device)
         self.name = name
@@ -78,17 +86,26 @@ class GreedyAgent:
         return np.concatenate(parts)
 
     def reset(self, num_episodes: int, seed: int | None = None) -> None:
-        """Episode start: nothing to do, the greedy policy keeps no state between steps."""
+        """Episode start: the revisit mask forgets the cells flown (the Q-values keep no state)."""
+        self.memory.reset()
 
     def act(self, obs: dict[str, np.ndarray]):
         single = np.ndim(obs["coverage"]) == 2
         if single:
             obs = as_batch(obs)
         q = torch.from_numpy(self.q_values(obs))
+        allowed = None
         if self.return_mask:
             wind = obs.get("wind")
-            safe = safe_actions(obs["map"], obs["position"], obs["budget"], wind, self.wind_margin)
-            q = mask_unsafe(q, torch.from_numpy(safe))
+            allowed = safe_actions(
+                obs["map"], obs["position"], obs["budget"], wind, self.wind_margin
+            )
+        if self.revisit_mask:
+            if allowed is None:
+                allowed = np.ones(tuple(q.shape), dtype=bool)
+            allowed = self.memory.allowed(obs, allowed)
+        if allowed is not None:
+            q = mask_unsafe(q, torch.from_numpy(allowed))
         actions = q.argmax(dim=1).numpy()
         return int(actions[0]) if single else actions
 
