@@ -154,6 +154,10 @@ def cmd_evaluate(args) -> None:
 
     weather = _wind(args)  # checked before anything is loaded or written
     runtime = _ray_runtime(args)
+    if args.grid_wind is not None and not args.map_set:
+        raise ValueError(
+            "--grid-wind needs --map-set (bundled maps in wind: scripts/wind_sweep.py)"
+        )
     if args.map_set or args.first:
         from cpp_mujoco.map_commands import cmd_evaluate_map_set
 
@@ -334,6 +338,11 @@ def add_evaluate(sub) -> None:
     )  # fmt: skip
     p.add_argument("--ray-address", help="with --ray: the Ray cluster to fly on (HOST:PORT)")
     add_wind_options(p)
+    p.add_argument(
+        "--grid-wind", type=float, default=None, metavar="SPEED",
+        help="grid, with --map-set: the grid's wind option, SPEED m/s in every episode from one "
+        "of the four compass directions, with the calibrated gusts (file names carry it)",
+    )  # fmt: skip
     p.add_argument(
         "--out", default="out/evaluate", help="folder for JSON and figures (default: %(default)s)"
     )

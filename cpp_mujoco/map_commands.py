@@ -140,6 +140,19 @@ def _set_agent(spec: str, set_name: str, size: int):
     return agent
 
 
+def grid_wind_option(args):
+    """``--grid-wind S``: the grid's wind option at S m/s in every episode, each from one of the
+    four compass directions, with the calibrated gusts (None without it)."""
+    speed = getattr(args, "grid_wind", None)
+    if speed is None:
+        return None
+    if args.backend != "grid":
+        raise ValueError("--grid-wind is the grid's wind option; in MuJoCo use --wind-speed")
+    from cpp_mujoco.grid.wind import GridWind
+
+    return GridWind(min_speed=speed, max_speed=speed, calm_fraction=0.0)
+
+
 def cmd_evaluate_map_set(
     args, planner_names: tuple[str, ...], weather: dict | None = None, runtime=None
 ) -> None:
@@ -163,10 +176,13 @@ def cmd_evaluate_map_set(
     from cpp_mujoco.review.map_set_figures import load_map_set_result, write_map_set_figures
     from cpp_mujoco.review.results import file_part
 
-    physics = {}
+    physics: dict = {}
     if args.backend == "mujoco":
         engine = "ray" if args.ray else "local"
         physics = {"workers": args.workers, "env_kwargs": weather or {}, "engine": engine}
+    wind = grid_wind_option(args)
+    if wind is not None:
+        physics["grid_wind"] = wind
     with runtime or nullcontext():
         result = evaluate_map_set(
             spec, maps, policies, args.budget_step, progress_wanted(args), args.backend,
@@ -174,11 +190,13 @@ def cmd_evaluate_map_set(
         )  # fmt: skip
     per_map, means = result.tables()
     part = "" if args.first is None else f"_first{args.first}"
-    path = result.to_json(out / f"{args.backend}_{file_part(spec.name)}{part}.json")
+    backend = args.backend if wind is None else f"grid-wind{args.grid_wind:g}"  # names the wind
+    path = result.to_json(out / f"{backend}_{file_part(spec.name)}{part}.json")
     grid_maps = {m.label: m for m in result.maps}  # drawn from the JSON just written
     figures = write_map_set_figures({path.stem: load_map_set_result(path)}, out, grid_maps)
     budgets = f"budgets {result.budgets[0]}..{result.budgets[-1]} step {args.budget_step}"
-    print(f"map set {spec.name}: {len(maps)} of {spec.count} maps, {budgets}, {args.backend}")
+    where = args.backend if wind is None else f"grid, wind {args.grid_wind:g} m/s from N/E/S/W"
+    print(f"map set {spec.name}: {len(maps)} of {spec.count} maps, {budgets}, {where}")
     print(per_map)
     print()
     print(means)

@@ -16,13 +16,14 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cpp_mujoco.evaluate import EvaluationResult, evaluate, protocol_budgets, split_conditions
+from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.io import atomic_write_text, json_default, json_plain
 from cpp_mujoco.map_sets import MapSetSpec
 from cpp_mujoco.maps import GridMap
@@ -185,10 +186,13 @@ def evaluate_map_set(
     workers: int | None = None,
     env_kwargs: dict | None = None,
     engine: str = "local",
+    grid_wind: GridWind | None = None,
 ) -> MapSetResult:
     """Every policy over every map of the set on ``backend``, with the set's size-class budgets
     (every ``budget_step``-th, the maximum always included). ``workers``, ``env_kwargs``
-    (weather) and ``engine`` are :func:`~cpp_mujoco.evaluate.evaluate`'s, for MuJoCo."""
+    (weather) and ``engine`` are :func:`~cpp_mujoco.evaluate.evaluate`'s, for MuJoCo;
+    ``grid_wind``: on the grid, the wind option every episode draws its wind from (each row's
+    conditions record it)."""
     from tqdm import tqdm
 
     if not maps:
@@ -203,6 +207,10 @@ def evaluate_map_set(
         check_physics(spec, maps[0], env_kwargs)
         physics = {"workers": workers, "env_kwargs": env_kwargs, "engine": engine}
     config = size_config(spec.size)
+    if grid_wind is not None:
+        if backend != "grid":
+            raise ValueError("grid_wind is the grid's wind option; MuJoCo flies env_kwargs' wind")
+        config = replace(config, wind=grid_wind)
     budgets = protocol_budgets(config, step=budget_step)
     middle = example_budget(budgets)
     result = MapSetResult(spec, list(maps), budgets, budget_step, backend=backend)

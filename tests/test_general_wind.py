@@ -260,3 +260,31 @@ def test_demonstrations_fly_only_maps_up_to_demo_max_side(tmp_path):
     assert all(trainer.pool.maps[m].shape == (16, 16) for m in flown)
     with pytest.raises(ValueError, match="demo_max_side"):
         GeneralTrainConfig(**{**TINY, "demo_max_side": 8})
+
+
+def test_a_map_set_flies_in_the_grid_wind_and_its_file_says_so(tmp_path, capsys):
+    from cpp_mujoco.cli import main
+
+    argv = ["evaluate", "--map-set", "heldout16-v1", "--first", "1", "--budget-step", "25",
+            "--planner", "safe-greedy", "safe-greedy-wind", "--out", str(tmp_path),
+            "--no-progress"]  # fmt: skip
+    assert main([*argv, "--grid-wind", "12"]) == 0
+    assert "grid, wind 12 m/s from N/E/S/W" in capsys.readouterr().out
+    result = json.loads((tmp_path / "grid-wind12_heldout16-v1_first1.json").read_text())
+    wind = result["conditions"]["grid_config"]["wind"]
+    assert wind["min_speed"] == wind["max_speed"] == 12.0 and wind["calm_fraction"] == 0.0
+    landing = {p["policy"]: p["mean_landing_ratio"] for p in result["policies"]}
+    assert landing["safe-greedy"] < 0.5 < landing["safe-greedy-wind"]  # unit costs crash
+    assert main(argv) == 0  # calm air: its own file beside
+    calm = json.loads((tmp_path / "grid_heldout16-v1_first1.json").read_text())
+    assert calm["conditions"]["grid_config"]["wind"] is None
+    capsys.readouterr()
+    for bad, says in (
+        (["--grid-wind", "nan"], "finite"),
+        (["--grid-wind", "13"], "calibrated range"),
+        (["--grid-wind", "9", "--backend", "mujoco"], "--wind-speed"),
+    ):
+        assert main([*argv, *bad]) == 2
+        assert says in capsys.readouterr().err
+    assert main(["evaluate", "--map", "A", "--grid-wind", "9"]) == 2
+    assert "--grid-wind needs --map-set" in capsys.readouterr().err
