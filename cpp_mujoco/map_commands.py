@@ -117,13 +117,13 @@ def cmd_generate(args) -> None:
 def _set_agent(spec: str, set_name: str, size: int):
     """A trained agent for a map set: never a per-map agent (the bundled ones, or one trained
     on a bundled map), which only flies the map it was trained on."""
-    from cpp_mujoco.agent import GENERAL_AGENT, bundled_agents, load_agent
+    from cpp_mujoco.agent import GENERAL_AGENTS, bundled_agents, load_agent
     from cpp_mujoco.io import is_path_like
     from cpp_mujoco.maps import bundled_maps
 
     _check_agent(spec)
     per_map = f"agent {spec!r} is a per-map agent"
-    if not is_path_like(spec, ".pt") and spec in bundled_agents() and spec != GENERAL_AGENT:
+    if not is_path_like(spec, ".pt") and spec in bundled_agents() and spec not in GENERAL_AGENTS:
         raise ValueError(
             f"{per_map}: it flies only map {spec.split('-')[0]}, not map set {set_name!r}; "
             "evaluate planners (--planner) or an agent trained on generated maps there"

@@ -12,6 +12,11 @@ moves to new targets as an input (zero weights at first), 8,192 generated maps p
 paper's maps A, B and C in the pool (15 % of the episodes), for 36,000 updates at half the
 learning rate; its ``best.pt`` (chosen on the validation maps) is the agent.
 ``--install`` copies it to ``cpp_mujoco/agent/bundled/general.pt`` (weights + metadata only).
+``--wind`` adds stage 4 (``OUT/stage4-wind``): stage 3's ``best.pt`` fine-tuned in the grid's
+wind option (0–12 m/s, 35 % calm, the wind inputs starting at zero weight, the return mask priced
+at the observed wind), guided by ``safe-greedy-wind`` and taught by ``beam-search-wind`` on the
+16×16 maps (the wind planners take minutes a 32×32 map) for 12,000 updates; its ``best.pt``
+(chosen on landing in wind) is ``general-wind`` (``--install`` copies it to ``general-wind.pt``).
 Run again, the script resumes a stage whose folder holds a ``checkpoint.pt`` and skips a
 finished one (docs/agent.md, "One agent for any map").
 """
@@ -25,10 +30,11 @@ import sys
 import time
 from pathlib import Path
 
-from cpp_mujoco.agent import BUNDLED_DIR, GENERAL_AGENT, load_agent
+from cpp_mujoco.agent import BUNDLED_DIR, GENERAL_AGENT, GENERAL_WIND_AGENT, load_agent
 from cpp_mujoco.agent.general_eval import validate
 from cpp_mujoco.agent.map_pool import VALIDATION_SEEDS, MapPool
-from cpp_mujoco.cli import main as cli_main  # the `cpp-mujoco` command itself
+from cpp_mujoco.cli import main as cli_main
+from cpp_mujoco.grid.wind import GridWind  # the `cpp-mujoco` command itself
 from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
 
 STAGES = [  # (folder, train-general options)
@@ -49,11 +55,24 @@ STAGES = [  # (folder, train-general options)
 ]  # fmt: skip
 
 
-def stage_commands(out: Path, extra: list[str]) -> list[tuple[Path, list[str]]]:
-    """(folder, ``cpp-mujoco`` argv) of each stage in ``out``, in order."""
-    names = {folder: str(out / folder) for folder, _ in STAGES}
+WIND_STAGE = ("stage4-wind", [
+    "--init-from", "{stage3}/best.pt", "--target-input", "--named-maps", "A", "B", "C",
+    "--named-share", "0.15", "--maps-per-size", "8192", "--val-maps-per-size", "8",
+    "--learning-rate", "0.00015", "--guide-fraction", "0.25", "--guide-updates", "12000",
+    "--total-updates", "12000", "--eval-every", "2000", "--checkpoint-every", "1000",
+    "--wind-max-speed", "12", "--wind-calm-fraction", "0.35", "--guide", "safe-greedy-wind",
+    "--demo-planner", "beam-search-wind", "--demo-max-side", "16", "--wind-planner-sigmas", "4.0",
+    "--best-by", "landing", "--no-final-eval",
+])  # fmt: skip
+WIND_VALIDATION = GridWind(max_speed=12.0, calm_fraction=0.35)  # the stage's own wind option
+
+
+def stage_commands(out: Path, extra: list[str], wind: bool = False) -> list[tuple[Path, list[str]]]:
+    """(folder, ``cpp-mujoco`` argv) of each stage in ``out``, in order (``wind``: with stage 4)."""
+    stages = [*STAGES, WIND_STAGE] if wind else STAGES
+    names = {folder: str(out / folder) for folder, _ in stages}
     runs = []
-    for folder, options in STAGES:
+    for folder, options in stages:
         argv = ["train-general", "--out", str(out / folder), "--threads", "1", "--no-progress"]
         runs.append((out / folder, argv + [o.format(**names) for o in options] + extra))
     return runs
@@ -72,10 +91,11 @@ def main(argv=None) -> int:
     )
     p.add_argument("--out", default="runs/general", help="one run folder per stage in here")
     p.add_argument("--install", action="store_true", help="copy best.pt into the package")
+    p.add_argument("--wind", action="store_true", help="stage 4: the general agent in wind")
     p.add_argument("extra", nargs="*", help="further train-general options, after --")
     args = p.parse_args(argv)
     out, t0 = Path(args.out), time.time()
-    runs = stage_commands(out, args.extra)
+    runs = stage_commands(out, args.extra, args.wind)
     for folder, cmd in runs:
         if (folder / "checkpoint.pt").exists():
             if folder != runs[-1][0] and (folder / "final_eval.json").exists():
@@ -91,7 +111,10 @@ def main(argv=None) -> int:
             return code
     kept = runs[-1][0] / "best.pt"
     agent = load_agent(kept)
-    result = validate(agent, MapPool.generate((16, 32), 8, VALIDATION_SEEDS.start), 5)
+    pool = MapPool.generate((16, 32), 8, VALIDATION_SEEDS.start)
+    if args.wind:  # the wind stage is judged in its own wind, its return rule with its margin
+        pool = pool.flown_with(WIND_VALIDATION, agent.wind_margin)
+    result = validate(agent, pool, 5)
     summary = {
         "commands": ["cpp-mujoco " + shlex.join(cmd) for _, cmd in runs],
         "agent": str(kept),
@@ -101,7 +124,8 @@ def main(argv=None) -> int:
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2))
     print(json.dumps(summary["validation"]))
     if args.install:
-        atomic_write_bytes(BUNDLED_DIR / f"{GENERAL_AGENT}.pt", kept.read_bytes())
+        name = GENERAL_WIND_AGENT if args.wind else GENERAL_AGENT
+        atomic_write_bytes(BUNDLED_DIR / f"{name}.pt", kept.read_bytes())
     return 0
 
 

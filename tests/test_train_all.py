@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from cpp_mujoco.agent import BUNDLED_DIR, bundled_agents, load_agent
+from cpp_mujoco.agent import BUNDLED_DIR, GENERAL_AGENTS, bundled_agents, load_agent
 from cpp_mujoco.agent.config import TrainConfig
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "train_all.py"
-WIND_AGENTS = [n for n in bundled_agents() if n.endswith("-wind")]
+WIND_AGENTS = [n for n in bundled_agents() if n.endswith("-wind") and n not in GENERAL_AGENTS]
 
 
 def _train_all():

@@ -22,6 +22,9 @@ from cpp_mujoco.io import resolve_named_file
 
 BUNDLED_DIR = Path(__file__).resolve().parent / "bundled"
 GENERAL_AGENT = "general"  # bundled/general.pt: the general agent (scripts/train_general.py)
+# bundled/general-wind.pt: the general agent fine-tuned in the grid's wind option (stage 4)
+GENERAL_WIND_AGENT = "general-wind"
+GENERAL_AGENTS = (GENERAL_AGENT, GENERAL_WIND_AGENT)  # they fly any map; the rest one map each
 
 
 def bundled_agents() -> list[str]:
@@ -86,6 +89,8 @@ __all__ = [
     "BUNDLED_DIR",
     "CheckpointError",
     "GENERAL_AGENT",
+    "GENERAL_AGENTS",
+    "GENERAL_WIND_AGENT",
     "GreedyAgent",
     "MapSizeError",
     "QNetwork",
