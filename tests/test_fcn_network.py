@@ -152,8 +152,9 @@ def test_cli_option_selects_the_network():
     config = config_from_args(args)
     assert config.architecture == "fcn" and "--architecture fcn" in resume_command(args)
     assert set(config.network_kwargs()) == {
-        "conv_filters", "hidden", "num_hidden", "max_side", "home_input"
+        "conv_filters", "hidden", "num_hidden", "max_side", "home_input", "wind_inputs"
     }  # fmt: skip
+    assert not config.network_kwargs()["wind_inputs"]  # only with --wind-max-speed
     assert config.home_input and config.network_kwargs()["home_input"]  # on for new runs
     off = config_from_args(parser.parse_args(["train-general", "--out", "x", "--no-home-input"]))
     assert not off.home_input and "--no-home-input" in resume_command(
