@@ -28,8 +28,8 @@ from cpp_mujoco.grid.wind import KIND_INDEX, GridWind, wind_costs
 from cpp_mujoco.map_generator import generate_from_seed
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.size_classes import size_config
-
-SMALL_NET = dict(local_size=9, global_size=11, conv_filters=8, hidden=64, num_hidden=2)
+from tests.test_return_mask import SMALL_NET
+from tests.test_return_mask import TINY as MASKED_TINY
 
 
 @pytest.fixture(autouse=True)
@@ -150,13 +150,12 @@ def test_an_untrained_masked_network_lands_in_strong_wind_where_unit_costs_crash
 
 
 # ------------------------------------------------------------------------------ a wind run
-TINY = dict(
-    sizes=(16,), maps_per_size=3, val_maps_per_size=1, demo_maps_per_size=1,
-    demo_budget_step=25, num_envs=8, batch_size=16, buffer_size=4000, learning_starts=200,
-    eval_every=1000, eval_budget_step=25, final_eval=True, final_budget_step=25, threads=1,
-    guide_updates=100, wind_max_speed=12.0, wind_calm_fraction=0.35, guide="safe-greedy-wind",
-    demo_planner="beam-search-wind", wind_planner_sigmas=5.0, **SMALL_NET,
-)  # fmt: skip
+# the masked general run of test_return_mask, on 16×16 maps, in the wind option
+TINY = {
+    **MASKED_TINY, "sizes": (16,), "final_eval": True, "final_budget_step": 25,
+    "wind_max_speed": 12.0, "wind_calm_fraction": 0.35, "guide": "safe-greedy-wind",
+    "demo_planner": "beam-search-wind", "wind_planner_sigmas": 5.0,
+}  # fmt: skip
 
 
 @pytest.fixture(scope="module")

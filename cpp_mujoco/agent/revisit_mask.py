@@ -25,6 +25,7 @@ import numpy as np
 from cpp_mujoco.agent.network import NFZ_CHANNEL, TARGET_CHANNEL
 from cpp_mujoco.grid.actions import LAND, MOVES
 from cpp_mujoco.grid.coverage import square_fov_counts
+from cpp_mujoco.grid.mdp import GridConfig
 
 # what results record of the rule (policy_identity); a changed rule gets a new name here
 REVISIT_RULE = (
@@ -36,7 +37,7 @@ REVISIT_RULE = (
 class RevisitMemory:
     """The cells each episode of a batch has flown through since its coverage last grew."""
 
-    def __init__(self, fov_side: int = 3):
+    def __init__(self, fov_side: int = GridConfig.fov_side):
         self.fov_side = fov_side
         self.visited: np.ndarray | None = None  # (N, H·W) bool
         self.covered: np.ndarray | None = None  # (N,) covered cells at the last step

@@ -20,13 +20,11 @@ from scipy.sparse.csgraph import dijkstra
 
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.coverage import square_fov_cells, square_fov_counts
-from cpp_mujoco.grid.return_rule import paid_actions
+from cpp_mujoco.grid.return_rule import REJECTED_AFTER, paid_actions
 from cpp_mujoco.grid.safety import SafetyController
 from cpp_mujoco.maps import GridMap
 
 UNREACHABLE = 10**6  # "no path"; two of them still add up inside int32
-# MapGraph.home_after of a rejected action: more than any budget, so the return mask drops it
-REJECTED_AFTER = 1 << 30
 DISTANCE_DTYPE = np.int32
 CACHE_BYTES = 32 << 20  # distance rows kept per map
 _CHUNK_BYTES = 16 << 20  # scipy's float64 rows computed at once

@@ -32,6 +32,8 @@ RETURN_RULE = (
     "observed wind each move at the dearest kind's mean + the wind planners' margin)"
 )
 MOVE_KINDS = [KIND_INDEX[k] for k in ("upwind", "downwind", "crosswind")]
+# MapGraph.home_after of a rejected action: more than any budget, so the rule never pays it
+REJECTED_AFTER = 1 << 30
 
 
 def wind_allowance(
@@ -57,7 +59,7 @@ def paid_actions(
     margin: ReturnMargin | None = None,
 ) -> np.ndarray:
     """(N, 5) bool: the actions the rule allows. ``after`` (N, 5): actions still needed to be
-    landed after each action (0 for a landing, :data:`~cpp_mujoco.grid.graph.REJECTED_AFTER`
+    landed after each action (0 for a landing, :data:`REJECTED_AFTER`
     for a rejected one); ``budget`` (N,) or (N, 1): the (observed) budget; ``wind`` (N, 2) the
     observed wind (None or zeros: calm air); ``margin``: the wind planners'."""
     after = np.asarray(after)
@@ -72,5 +74,5 @@ def paid_actions(
     stuck = ~paid.any(axis=1)
     if stuck.any():  # the margin is spent: the way home (rejected actions stay out)
         home = after[stuck] == after[stuck].min(axis=1, keepdims=True)
-        paid[stuck] = home & (after[stuck] < np.iinfo(np.int32).max // 4)
+        paid[stuck] = home & (after[stuck] < REJECTED_AFTER)
     return paid
