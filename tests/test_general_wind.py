@@ -27,6 +27,7 @@ from cpp_mujoco.grid.way_home import ReturnMargin, correlation_widening
 from cpp_mujoco.grid.wind import KIND_INDEX, GridWind, wind_costs
 from cpp_mujoco.map_generator import generate_from_seed
 from cpp_mujoco.planners import make_planner
+from cpp_mujoco.review.map_set_figures import merge_map_set_results, run_label
 from cpp_mujoco.size_classes import size_config
 from tests.test_return_mask import SMALL_NET
 from tests.test_return_mask import TINY as MASKED_TINY
@@ -277,6 +278,10 @@ def test_a_map_set_flies_in_the_grid_wind_and_its_file_says_so(tmp_path, capsys)
     assert main(argv) == 0  # calm air: its own file beside
     calm = json.loads((tmp_path / "grid_heldout16-v1_first1.json").read_text())
     assert calm["conditions"]["grid_config"]["wind"] is None
+    # the figures say which air, and a calm and a windy run of one set are never drawn as one
+    assert "wind 12 m/s, N/E/S/W" in run_label(result) and "wind" not in run_label(calm)
+    with pytest.raises(ValueError, match="cannot merge"):
+        merge_map_set_results([calm, result])
     capsys.readouterr()
     for bad, says in (
         (["--grid-wind", "nan"], "finite"),

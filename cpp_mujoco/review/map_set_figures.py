@@ -60,7 +60,7 @@ def merge_map_set_results(results: Sequence[dict]) -> dict:
     maps = [(r["map"], r["map_digest"]) for r in first["rows"]]
     rows, summaries = [], []
     for data in results:
-        if any(data[k] != first[k] for k in key):
+        if any(data[k] != first[k] for k in key) or grid_wind(data) != grid_wind(first):
             raise ValueError(
                 f"cannot merge results of {set_label(data)}, {run_label(data)} with "
                 f"{set_label(first)}, {run_label(first)}"
@@ -105,8 +105,18 @@ def set_label(data: dict) -> str:
     )
 
 
+def grid_wind(data: dict) -> dict | None:
+    """The grid's wind option a map-set result was flown in (``evaluate --grid-wind``; None:
+    calm air), from the conditions its rows share or else its first row's."""
+    conditions = data.get("conditions") or {}
+    if "grid_config" not in conditions and data.get("rows"):
+        conditions = data["rows"][0].get("conditions") or {}
+    return (conditions.get("grid_config") or {}).get("wind")
+
+
 def run_label(data: dict) -> str:
-    """``grid, budgets 25..75 step 25`` or ``MuJoCo (9 m/s N), budgets ...``."""
+    """``grid, budgets 25..75 step 25``, ``grid (wind 9 m/s, N/E/S/W), budgets ...`` or
+    ``MuJoCo (9 m/s N), budgets ...``."""
     from cpp_mujoco.review.results import weather
 
     b = data["budgets"]
@@ -114,6 +124,11 @@ def run_label(data: dict) -> str:
     backend = backend_name(data["backend"])
     if data["backend"] == "mujoco":
         backend += f" ({weather(SimpleNamespace(conditions=data.get('conditions') or {}))})"
+    elif (wind := grid_wind(data)) is not None:
+        lo, hi = wind["min_speed"], wind["max_speed"]
+        speed = f"{lo:g}" if lo == hi else f"{lo:g}..{hi:g}"
+        calm = f", {wind['calm_fraction']:.0%} calm" if wind["calm_fraction"] else ""
+        backend += f" (wind {speed} m/s, {'/'.join(wind['directions'])}{calm})"
     return f"{backend}, {budgets}"
 
 
