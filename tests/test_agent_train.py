@@ -104,8 +104,8 @@ def test_the_wind_planner_margin_option_reaches_guide_and_demonstrator(tmp_path,
         lambda m, cfg, planner, *a: taught.append(planner) or real(m, cfg, planner, *a),
     )  # fmt: skip
     cfg = TrainConfig(
-        map="B", num_envs=8, threads=1, wind_max_speed=12, guide="safe-greedy-wind",
-        demo_planner="beam-search-wind", wind_planner_sigmas=6.0,
+        map="B", min_budget=8, max_budget=16, num_envs=8, threads=1, wind_max_speed=12,
+        guide="safe-greedy-wind", demo_planner="beam-search-wind", wind_planner_sigmas=6.0,
     )  # fmt: skip
     trainer = Trainer(cfg, tmp_path)
     assert trainer.guide.margin.gusty_sigmas == 6.0

@@ -91,12 +91,12 @@ def test_calm_air_is_one_run_without_directions():
 
 def test_the_rated_wind_keeps_the_bundled_agent_out_of_no_fly_airspace():
     """A protocol subset of the full run (``scripts/rated_wind.py``): map B's agent, every
-    landing cell, budgets across the range, 9 m/s from each direction + moderate turbulence."""
+    landing cell, a short and a longer budget, 9 m/s from each direction + moderate turbulence."""
     result = evaluate_in_winds(
         load_agent("B"), "B", RATED_WIND["wind_speed"], turbulence=RATED_WIND["turbulence"],
-        budgets=[25, 30, 35, 40], policy_name="ddqn[B]", workers=2,
+        budgets=[25, 40], policy_name="ddqn[B]", workers=2,
     )  # fmt: skip
-    assert result.landed.size == 8 * 4
+    assert result.landed.size == 8 * 2
     assert result.physics["nfz_violations"].sum() == 0
     # the margin: a no-fly border lies half a cell (2 m) from every reference point
     assert result.physics["max_track_error_m"].max() < 1.5
