@@ -5,7 +5,7 @@ import pytest
 
 from cpp_mujoco.agent import GENERAL_AGENTS, bundled_agents, load_agent
 from cpp_mujoco.agent.network import count_parameters
-from cpp_mujoco.evaluate import PAPER_LANDING_RATIO, evaluate
+from cpp_mujoco.evaluate import PAPER_LANDING_RATIO, evaluate, protocol_budgets
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.maps import load_map
@@ -61,7 +61,7 @@ def test_wind_agent_reads_the_wind_and_lands_where_the_paper_agent_crashes(name)
     assert agent.metadata["config"]["wind_max_speed"] > 0
     windy = GridConfig(wind=GridWind(min_speed=9.0, max_speed=9.0, calm_fraction=0.0))
     robust = evaluate(agent, grid_name, config=windy)
-    some = range(windy.min_budget, windy.max_budget + 1, 5)
+    some = protocol_budgets(windy, 5)
     paper = evaluate(load_agent(grid_name), grid_name, config=windy, budgets=some)
     assert robust.landing_ratio >= 0.99 and robust.landing_ratio >= paper.landing_ratio + 0.3
     assert evaluate(agent, grid_name, budgets=some).landing_ratio >= 0.995

@@ -56,11 +56,10 @@ def merge_map_set_results(results: Sequence[dict]) -> dict:
     another machine) as one: they must name the same set, maps (by digest), backend and budgets,
     and no policy twice. Each row keeps all of its conditions (its run's shared ones included)."""
     first = results[0]
-    key = ("map_set", "backend", "budgets")
     maps = [(r["map"], r["map_digest"]) for r in first["rows"]]
     rows, summaries = [], []
     for data in results:
-        if any(data[k] != first[k] for k in key) or grid_wind(data) != grid_wind(first):
+        if _merge_key(data) != _merge_key(first):
             raise ValueError(
                 f"cannot merge results of {set_label(data)}, {run_label(data)} with "
                 f"{set_label(first)}, {run_label(first)}"
@@ -103,6 +102,11 @@ def set_label(data: dict) -> str:
         f"{s['evaluated']} of {s['count']} maps (seeds {s['first_seed']}.., generator "
         f"v{s['generator_version']})"
     )
+
+
+def _merge_key(data: dict) -> tuple:
+    """What results must share to be one: the set, the backend, the budgets and the air."""
+    return data["map_set"], data["backend"], data["budgets"], grid_wind(data)
 
 
 def grid_wind(data: dict) -> dict | None:
