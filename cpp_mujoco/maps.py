@@ -200,9 +200,16 @@ def _read_png(path: Path) -> np.ndarray:
 
 
 def load_map(source: str | os.PathLike | GridMap) -> GridMap:
-    """A bundled map by name (``"A"``), a PNG path, or a ``GridMap`` passed through."""
+    """A bundled map by name (``"A"``), a PNG path, or a ``GridMap`` passed through; a name or
+    path with ``~<image>`` (``"C~rot180"``, ``"site.png~mirror"``) is that map turned or mirrored
+    (:mod:`cpp_mujoco.map_symmetry`): the same mission in another orientation."""
     if isinstance(source, GridMap):
         return source
+    base, sep, image = os.fspath(source).rpartition("~")
+    if sep and base and not Path(source).exists():
+        from cpp_mujoco.map_symmetry import symmetry_named, turn_map
+
+        return turn_map(load_map(base), symmetry_named(image))
     where = resolve_named_file(
         source, bundled=bundled_dir("maps"), suffix=".png", kind="map", error=MapError
     )

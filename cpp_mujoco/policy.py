@@ -164,4 +164,8 @@ def policy_identity(policy: object) -> dict[str, Any]:
             from cpp_mujoco.agent.revisit_mask import REVISIT_RULE
 
             out["revisit_rule"] = REVISIT_RULE
+    if getattr(policy, "symmetric_q", False):  # recorded only when on: results keep their keys
+        from cpp_mujoco.map_symmetry import SYMMETRIC_Q_RULE
+
+        out["symmetric_q"] = SYMMETRIC_Q_RULE
     return out

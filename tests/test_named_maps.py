@@ -12,7 +12,9 @@ from cpp_mujoco.agent.map_pool import NAMED_SEED, MapPool
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.map_generator import generate_from_seed
 from cpp_mujoco.map_sets import map_set_spec
+from cpp_mujoco.map_symmetry import SYMMETRIES
 from cpp_mujoco.maps import load_map
+from cpp_mujoco.policy import policy_identity
 
 from .test_general_agent import TINY
 
@@ -96,6 +98,22 @@ def test_a_run_trains_on_its_named_map_with_demonstrations(tmp_path):
     agent = load_agent(tmp_path / "agent.pt")
     assert agent.metadata["train_maps"]["named"] == ["A (242dcad1db2a)"]
     assert list(agent.metadata["config"]["named_maps"]) == ["A"]
+
+
+def test_a_run_trains_on_every_image_of_its_named_map_and_flies_symmetric(tmp_path):
+    config = GeneralTrainConfig(
+        total_updates=20, **{**TINY, "learning_starts": 64, "named_maps": ("C",),
+                             "named_share": 0.5, "named_symmetries": True, "symmetric_q": True},
+    )  # fmt: skip
+    trainer = GeneralTrainer(config, tmp_path)
+    images = [trainer.pool.maps[i].name for i in trainer.pool.named]
+    assert images == ["C", *(f"C~{s.name}" for s in SYMMETRIES[1:])]
+    assert set(trainer.pool.named) <= set(trainer.demos.map_index.tolist())
+    trainer.run(progress=False)
+    agent = load_agent(tmp_path / "agent.pt")
+    assert agent.symmetric_q and agent.metadata["symmetric_q"]
+    assert len(agent.metadata["train_maps"]["named"]) == 8
+    assert "d4-mean" in policy_identity(agent)["symmetric_q"]
 
 
 def test_the_command_refuses_a_bad_named_map_before_claiming_the_folder(tmp_path, capsys):

@@ -53,6 +53,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
     # an agent trained with the return mask acts with it; files from before the option had none
     return_mask = bool((obj.get("config") or {}).get("return_mask", False))
     revisit_mask = bool((obj.get("config") or {}).get("revisit_mask", False))
+    symmetric_q = bool((obj.get("config") or {}).get("symmetric_q", False))
     wind_margin = _wind_margin((obj.get("config") or {}).get("wind_planner_sigmas"), where.path)
     return GreedyAgent(
         net,
@@ -65,6 +66,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
             "architecture": obj.get("architecture", "paper"),
             "return_mask": return_mask,
             "revisit_mask": revisit_mask,
+            "symmetric_q": symmetric_q,
             "source": str(where.path),
             "bundled": where.bundled,
             "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
@@ -72,6 +74,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
         return_mask=return_mask,
         wind_margin=wind_margin,
         revisit_mask=revisit_mask,
+        symmetric_q=symmetric_q,
     )
 
 

@@ -61,6 +61,10 @@ _GENERAL_HELP = {
     "target_input": "the network also reads, for each action, the moves from the cell it leads "
     "to until the 3x3 view holds an unseen target (global-local only; from an --init-from "
     "network without it, the new inputs start at zero weight)",
+    "named_symmetries": "also train on every --named-maps map's rotations and mirror images "
+    "(8 for a square map), not only its own orientation",
+    "symmetric_q": "as a policy (validation, the agent file), take the argmax of the Q-values "
+    "averaged over the map's rotations and mirror images (8 network readings a step)",
     "init_from": "start from this general agent's weights (a run's agent.pt or best.pt of the "
     "same network; empty = random)",
     "eval_budget_step": "validation flies every n-th budget of each size class",

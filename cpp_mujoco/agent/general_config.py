@@ -80,6 +80,13 @@ class GeneralTrainConfig(TrainConfig):
     # leads to until the 3×3 view holds an unseen target (:mod:`~cpp_mujoco.agent.target_input`);
     # with --init-from a network without it, the new inputs start at zero weight
     target_input: bool = False
+    # train on every named map's images — its 8 rotations and mirror images (a square map;
+    # :mod:`cpp_mujoco.map_symmetry`) — so the network learns the site, not one orientation of it
+    named_symmetries: bool = False
+    # as a policy (validation, the final evaluation, the agent file), argmax of the Q-values
+    # averaged over the map's symmetries (:func:`~cpp_mujoco.map_symmetry.symmetric_q_values`:
+    # 8 readings of one network for a square map); a config stored before reads False
+    symmetric_q: bool = False
     # --- defaults that differ from the per-map agent's -----------------------------------------
     buffer_size: int = 200_000  # many maps: a longer memory (≈ 35 MB packed)
     total_updates: int = 200_000  # a skill, not a tour: a GPU or a long CPU run

@@ -52,6 +52,7 @@ from cpp_mujoco.agent.target_input import widen_for_target_input
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.agent.training_run import run_in_folder
+from cpp_mujoco.map_symmetry import map_images
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
 
@@ -60,7 +61,7 @@ from cpp_mujoco.planners import make_planner
 REFERENCE_PLANNER = "safe-greedy"
 WIND_REFERENCE_PLANNER = "safe-greedy-wind"
 # a resumed general run may also change these: they schedule it, not what it learns
-GENERAL_RESUMABLE = RESUMABLE_CHANGES | {"final_budget_step", "revisit_mask"}
+GENERAL_RESUMABLE = RESUMABLE_CHANGES | {"final_budget_step", "revisit_mask", "symmetric_q"}
 # GeneralTrainConfig.architecture → (network class, what its checkpoints record)
 NETWORKS = {"global-local": (GeneralQNetwork, GENERAL), "fcn": (FCNQNetwork, FCN)}
 
@@ -109,7 +110,10 @@ def training_pool(config: GeneralTrainConfig, per_size: int | None = None) -> Ma
     pool = MapPool.generate(config.sizes, per_size or config.maps_per_size, config.map_seed)
     if not config.named_maps:
         return pool
-    return pool.with_named([load_map(name) for name in config.named_maps])
+    named = [load_map(name) for name in config.named_maps]
+    if config.named_symmetries:
+        named = [image for grid_map in named for image in map_images(grid_map)]
+    return pool.with_named(named)
 
 
 class GeneralTrainer(Trainer):
@@ -183,6 +187,7 @@ class GeneralTrainer(Trainer):
     def label(self) -> str:
         sizes = "+".join(str(s) for s in self.config.sizes)
         named = f" + {', '.join(self.config.named_maps)}" if self.config.named_maps else ""
+        named += " and their 8 images" if named and self.config.named_symmetries else ""
         generated = len(self.pool) - len(self.pool.named)
         wind = f", wind up to {self.config.wind_max_speed:g} m/s" if self.config.wind else ""
         return f"general ({generated} generated maps{named}, sizes {sizes}{wind})"
@@ -192,7 +197,7 @@ class GeneralTrainer(Trainer):
         return GreedyAgent(
             self.online, self.config.input_budget_scale, self.device, name="ddqn-general",
             return_mask=self.config.return_mask, wind_margin=self.config.wind_margin,
-            revisit_mask=self.config.revisit_mask,
+            revisit_mask=self.config.revisit_mask, symmetric_q=self.config.symmetric_q,
         )  # fmt: skip
 
     def evaluate(self, full: bool = False) -> ValidationResult:

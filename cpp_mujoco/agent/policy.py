@@ -16,6 +16,7 @@ from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.agent.revisit_mask import RevisitMemory
 from cpp_mujoco.grid.way_home import ReturnMargin
+from cpp_mujoco.map_symmetry import symmetric_q_values
 from cpp_mujoco.policy import as_batch
 
 FORWARD_CELLS = 2**20  # observations per forward pass × map cells: caps the conv activations
@@ -31,7 +32,8 @@ class GreedyAgent:
     among the return rule's safe actions (agents trained with it), in an observed wind with
     ``wind_margin`` (the margin of the wind planners it learned from; None: their default);
     ``revisit_mask``: nor the moves back into a cell flown through since the coverage last grew
-    that shows no unseen target (:mod:`~cpp_mujoco.agent.revisit_mask`)."""
+    that shows no unseen target (:mod:`~cpp_mujoco.agent.revisit_mask`); ``symmetric_q``: the
+    argmax of the Q-values averaged over the map's rotations and mirror images."""
 
     def __init__(
         self,
@@ -43,11 +45,13 @@ class GreedyAgent:
         return_mask: bool = False,
         wind_margin: ReturnMargin | None = None,
         revisit_mask: bool = False,
+        symmetric_q: bool = False,
     ):
         self.network = network.to(device).eval()
         self.return_mask = bool(return_mask)
         self.wind_margin = wind_margin
         self.revisit_mask = bool(revisit_mask)
+        self.symmetric_q = bool(symmetric_q)
         self.memory = RevisitMemory()
         self.budget_scale = float(budget_scale)
         self.device = torch.device(device)
@@ -63,9 +67,16 @@ class GreedyAgent:
             return None
         return self.network.height, self.network.width
 
-    @torch.no_grad()
     def q_values(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        """Q-values (N, 5) for a batch of observations."""
+        """Q-values (N, 5) for a batch of observations; with ``symmetric_q`` their mean over
+        the map's images (:func:`~cpp_mujoco.map_symmetry.symmetric_q_values`)."""
+        if self.symmetric_q:
+            return symmetric_q_values(self.network_q_values, obs)
+        return self.network_q_values(obs)
+
+    @torch.no_grad()
+    def network_q_values(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """The network's Q-values (N, 5) for a batch of observations, as it reads them."""
         shape = tuple(np.shape(obs["coverage"])[-2:])
         if self.map_shape is not None and shape != self.map_shape:
             raise MapSizeError(

@@ -1,0 +1,149 @@
+"""The grid's symmetries: a turned or mirrored map flown with the turned actions is the same
+mission, cell by cell; a symmetric Q-estimate is the same on every image of a state."""
+
+import numpy as np
+import pytest
+import torch
+
+from cpp_mujoco.agent.general_network import GeneralQNetwork
+from cpp_mujoco.agent.policy import GreedyAgent
+from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
+from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.grid.wind import action_kind, wind_velocity
+from cpp_mujoco.map_generator import generate_from_seed
+from cpp_mujoco.map_symmetry import (
+    IDENTITY,
+    SYMMETRIES,
+    Symmetry,
+    action_permutation,
+    map_images,
+    symmetric_q_values,
+    symmetries_of,
+    turn_cells,
+    turn_map,
+    turn_observation,
+    turn_wind,
+)
+from cpp_mujoco.maps import GridMap, MapError, load_map
+from cpp_mujoco.policy import policy_identity
+
+
+def test_the_group_has_eight_distinct_elements_and_its_action_maps_are_permutations():
+    cells = np.arange(12).reshape(3, 4)
+    square = np.arange(16).reshape(4, 4)
+    assert len({turn_cells(square, s).tobytes() for s in SYMMETRIES}) == 8
+    assert len(symmetries_of((4, 4))) == 8 and len(symmetries_of((3, 4))) == 4
+    assert all(turn_cells(cells, s).shape == (3, 4) for s in symmetries_of((3, 4)))
+    for s in SYMMETRIES:
+        perm = action_permutation(s)
+        assert sorted(perm.tolist()) == [0, 1, 2, 3, 4] and perm[LAND] == LAND
+    # a quarter turn counter-clockwise: what lay north of the UAV lies west of it
+    quarter = Symmetry(False, 1)
+    assert action_permutation(quarter)[[NORTH, EAST, SOUTH, WEST]].tolist() == [
+        WEST, NORTH, EAST, SOUTH,
+    ]  # fmt: skip
+    assert action_permutation(Symmetry(True, 0))[[EAST, WEST]].tolist() == [WEST, EAST]
+
+
+@pytest.mark.parametrize("symmetry", SYMMETRIES[1:], ids=lambda s: s.name)
+def test_a_turned_map_flown_with_the_turned_actions_is_the_same_mission(symmetry):
+    grid_map = generate_from_seed(3, 16)
+    image = turn_map(grid_map, symmetry)
+    assert image.name == f"{grid_map.name}~{symmetry.name}" and image.digest != grid_map.digest
+    n, rng = 64, np.random.default_rng(0)
+    starts = np.argwhere(grid_map.landing)[rng.integers(int(grid_map.landing.sum()), size=n)]
+    index = np.arange(256).reshape(16, 16)
+    turned_index = turn_cells(index, symmetry)  # turned_index[cell of the image] = map's cell
+    where = {int(c): divmod(int(i), 16) for i, c in enumerate(turned_index.reshape(-1))}
+    budgets = rng.integers(10, 40, size=n)
+    mdp, twin = GridMDP(grid_map, n), GridMDP(image, n)
+    mdp.reset(rng, start=starts, budget=budgets)
+    twin.reset(rng, start=np.array([where[r * 16 + c] for r, c in starts]), budget=budgets)
+    perm = action_permutation(symmetry)
+    for _ in range(40):
+        actions = rng.integers(5, size=n)
+        a, b = mdp.step(actions), twin.step(perm[actions])
+        for key in ("reward", "terminated", "rejected", "crashed", "newly_seen"):
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key), err_msg=key)
+        obs = turn_observation(mdp.observation(), symmetry)
+        seen = twin.observation()
+        for key in ("map", "coverage", "position", "budget"):
+            np.testing.assert_array_equal(obs[key], seen[key], err_msg=key)
+
+
+@pytest.mark.parametrize("wind_from", [0.0, 90.0, 180.0, 270.0])
+@pytest.mark.parametrize("symmetry", SYMMETRIES, ids=lambda s: s.name)
+def test_the_wind_turns_with_the_map(symmetry, wind_from):
+    """Each action's kind (upwind, downwind, crosswind) is its image's in the turned wind."""
+    velocity = wind_velocity(np.array([7.0]), np.array([wind_from]))
+    turned = turn_wind(velocity, symmetry)
+    candidates = np.array([0.0, 90.0, 180.0, 270.0])
+    match = [f for f in candidates if np.allclose(wind_velocity(np.array([7.0]), [f]), turned)]
+    assert len(match) == 1
+    moves = np.arange(4)
+    kinds = action_kind(moves, np.zeros(4, bool), np.zeros(4, bool), np.full(4, wind_from))
+    turned_kinds = action_kind(
+        action_permutation(symmetry)[moves], np.zeros(4, bool), np.zeros(4, bool),
+        np.full(4, match[0]),
+    )  # fmt: skip
+    np.testing.assert_array_equal(kinds, turned_kinds)
+
+
+def _observations(grid_map: GridMap, n: int = 6) -> dict[str, np.ndarray]:
+    mdp = GridMDP(grid_map, n, GridConfig())
+    rng = np.random.default_rng(1)
+    mdp.reset(rng, budget=30)
+    for _ in range(5):
+        mdp.step(rng.integers(4, size=n))
+    return mdp.observation()
+
+
+def test_symmetric_q_values_are_the_same_on_every_image_of_a_state():
+    torch.manual_seed(0)
+    network = GeneralQNetwork(home_input=True, target_input=True)
+    agent = GreedyAgent(network, 75.0, symmetric_q=True)
+    plain = GreedyAgent(network, 75.0)
+    obs = _observations(load_map("C"))
+    q = agent.q_values(obs)
+    assert not np.allclose(q, plain.q_values(obs), atol=1e-4)  # a random network is not symmetric
+    for symmetry in SYMMETRIES:
+        image_q = agent.q_values(turn_observation(obs, symmetry))
+        np.testing.assert_allclose(image_q[:, action_permutation(symmetry)], q, atol=1e-5)
+    np.testing.assert_allclose(symmetric_q_values(plain.q_values, obs), q, atol=1e-6)
+    assert "d4-mean" in policy_identity(agent)["symmetric_q"]
+    assert "symmetric_q" not in policy_identity(plain)
+
+
+def test_a_non_square_map_reads_the_four_images_that_keep_its_shape():
+    wide = GridMap(
+        landing=np.pad(np.ones((2, 2), bool), ((0, 10), (0, 18))),
+        target=np.pad(np.ones((3, 3), bool), ((6, 3), (12, 5))),
+        nfz=np.zeros((12, 20), bool),
+    )
+    readings = []
+    obs = _observations(wide, 2)
+    symmetric_q_values(lambda o: readings.append(o["coverage"].shape) or np.zeros((2, 5)), obs)
+    assert readings == [(2, 12, 20)] * 4
+
+
+def test_map_images_are_the_distinct_ones():
+    assert [m.name for m in map_images(load_map("A"))][:2] == ["A", "A~rot90"]
+    assert len(map_images(load_map("A"))) == 8
+    plain = GridMap(
+        landing=np.pad(np.ones((2, 2), bool), 7),
+        target=np.pad(np.ones((4, 4), bool), 6),
+        nfz=np.zeros((16, 16), bool),
+    )
+    assert map_images(plain) == [plain]  # centred squares: every image is the map itself
+    assert turn_map(plain, IDENTITY) is plain
+
+
+def test_a_map_name_with_an_image_loads_the_turned_map_and_says_so():
+    image = load_map("C~rot180")
+    assert np.array_equal(image.nfz, np.rot90(load_map("C").nfz, 2))
+    assert image.label == "C~rot180" and not image.bundled
+    assert image.identity()["map_source"] == "bundled (C), image rot180"
+    with pytest.raises(MapError, match="unknown map image 'rot45'.*mirror-rot270"):
+        load_map("C~rot45")
+    with pytest.raises(MapError, match="unknown map 'nosuch'"):
+        load_map("nosuch~rot90")
