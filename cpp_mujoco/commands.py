@@ -172,8 +172,9 @@ def cmd_evaluate(args) -> None:
     policies = [(name, make_planner(name)) for name in args.planner]
     if args.agent:
         from cpp_mujoco.agent import load_agent
+        from cpp_mujoco.map_commands import agent_entry
 
-        policies += [(f"ddqn[{spec}]", load_agent(spec)) for spec in args.agent]
+        policies += [agent_entry(s, load_agent(s), args.symmetric_q) for s in args.agent]
     out = out_dir(args.out)
     extra: dict = {"progress": progress_wanted(args)}
     extra["budgets"] = protocol_budgets(step=args.budget_step)
@@ -320,6 +321,11 @@ def add_evaluate(sub) -> None:
     p.add_argument(
         "--agent", nargs="*", default=[],
         help="trained agents: a bundled agent name (A) or a checkpoint file",
+    )  # fmt: skip
+    p.add_argument(
+        "--symmetric-q", action=argparse.BooleanOptionalAction, default=None,
+        help="agents act on Q-values averaged over the map's rotations and mirror images (8 "
+        "readings a step), or --no-symmetric-q on their own (default: each file's own rule)",
     )  # fmt: skip
     p.add_argument(
         "--backend", default="grid", choices=["grid", "mujoco"],

@@ -10,7 +10,12 @@ import os
 import sys
 from pathlib import Path
 
-from cpp_mujoco.commands import _check_agent, int_at_least, out_dir, progress_wanted
+from cpp_mujoco.commands import (
+    _check_agent,
+    int_at_least,
+    out_dir,
+    progress_wanted,
+)
 
 DEFAULT_SIZE = 16
 
@@ -114,6 +119,15 @@ def cmd_generate(args) -> None:
 
 
 # --------------------------------------------------------------------------- evaluate --map-set
+def agent_entry(spec: str, agent, symmetric_q: bool | None) -> tuple[str, object]:
+    """(label, agent) of ``--agent SPEC``; ``--[no-]symmetric-q`` overrides the file's rule and
+    says so in the label (so in file names: the two runs never overwrite each other)."""
+    if symmetric_q is None:
+        return f"ddqn[{spec}]", agent
+    agent.symmetric_q = symmetric_q
+    return f"ddqn[{spec}, {'symmetric' if symmetric_q else 'plain'} Q]", agent
+
+
 def _set_agent(spec: str, set_name: str, size: int):
     """A trained agent for a map set: never a per-map agent (the bundled ones, or one trained
     on a bundled map), which only flies the map it was trained on."""
@@ -167,7 +181,8 @@ def cmd_evaluate_map_set(
     from cpp_mujoco.planners import make_planner
 
     spec = map_set_spec(args.map_set)
-    agents = [(f"ddqn[{a}]", _set_agent(a, spec.name, spec.size)) for a in args.agent]
+    symmetric = getattr(args, "symmetric_q", None)
+    agents = [agent_entry(a, _set_agent(a, spec.name, spec.size), symmetric) for a in args.agent]
     maps = load_map_set(spec.name, first=args.first)
     names = args.planner or ([] if agents else list(planner_names))
     policies = [(name, make_planner(name)) for name in names] + agents

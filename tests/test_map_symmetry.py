@@ -1,6 +1,8 @@
 """The grid's symmetries: a turned or mirrored map flown with the turned actions is the same
 mission, cell by cell; a symmetric Q-estimate is the same on every image of a state."""
 
+import json
+
 import numpy as np
 import pytest
 import torch
@@ -147,3 +149,18 @@ def test_a_map_name_with_an_image_loads_the_turned_map_and_says_so():
         load_map("C~rot45")
     with pytest.raises(MapError, match="unknown map 'nosuch'"):
         load_map("nosuch~rot90")
+
+
+def test_evaluate_flies_an_agent_with_symmetric_q_and_names_it(tmp_path, capsys):
+    from cpp_mujoco.cli import main
+
+    args = ["evaluate", "--map", "B~rot90", "--agent", "B", "--budget-step", "25"]
+    assert main([*args, "--symmetric-q", "--out", str(tmp_path)]) == 0
+    assert main([*args, "--out", str(tmp_path)]) == 0
+    files = sorted(p.name for p in tmp_path.glob("*ddqn*.json"))
+    assert files == ["grid_B_rot90_ddqn_B.json", "grid_B_rot90_ddqn_B_symmetric_Q.json"]
+    data = {name: json.loads((tmp_path / name).read_text()) for name in files}
+    symmetric = [d for d in data.values() if "symmetric" in str(d["policy"])]
+    assert len(symmetric) == 1 and "d4-mean" in json.dumps(symmetric[0])
+    assert symmetric[0]["map"] == "B~rot90" and symmetric[0]["episodes"] == 8 * 3
+    assert "symmetric" in capsys.readouterr().out
