@@ -10,12 +10,7 @@ import os
 import sys
 from pathlib import Path
 
-from cpp_mujoco.commands import (
-    _check_agent,
-    int_at_least,
-    out_dir,
-    progress_wanted,
-)
+from cpp_mujoco.commands import _check_agent, int_at_least, out_dir, progress_wanted
 
 DEFAULT_SIZE = 16
 
@@ -181,8 +176,9 @@ def cmd_evaluate_map_set(
     from cpp_mujoco.planners import make_planner
 
     spec = map_set_spec(args.map_set)
-    symmetric = getattr(args, "symmetric_q", None)
-    agents = [agent_entry(a, _set_agent(a, spec.name, spec.size), symmetric) for a in args.agent]
+    agents = [
+        agent_entry(a, _set_agent(a, spec.name, spec.size), args.symmetric_q) for a in args.agent
+    ]
     maps = load_map_set(spec.name, first=args.first)
     names = args.planner or ([] if agents else list(planner_names))
     policies = [(name, make_planner(name)) for name in names] + agents

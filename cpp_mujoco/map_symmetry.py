@@ -78,6 +78,9 @@ def action_permutation(symmetry: Symmetry) -> np.ndarray:
     return np.array([index[turn_move(r, c, symmetry)] for r, c in MOVES.tolist()])
 
 
+PERMUTATIONS = {s: action_permutation(s) for s in SYMMETRIES}  # read per step: computed once
+
+
 def turn_wind(wind: np.ndarray, symmetry: Symmetry) -> np.ndarray:
     """(…, 2) east and north wind components (m/s) on the image: east is +column, north −row."""
     wind = np.asarray(wind)
@@ -133,6 +136,6 @@ def symmetric_q_values(q_values, obs: dict[str, np.ndarray]) -> np.ndarray:
     group = symmetries_of(shape)
     total = None
     for symmetry in group:
-        q = np.asarray(q_values(turn_observation(obs, symmetry)))[:, action_permutation(symmetry)]
+        q = np.asarray(q_values(turn_observation(obs, symmetry)))[:, PERMUTATIONS[symmetry]]
         total = q if total is None else total + q
     return total / len(group)
