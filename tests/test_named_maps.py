@@ -10,10 +10,12 @@ from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_train import GeneralTrainer, training_pool
 from cpp_mujoco.agent.map_pool import NAMED_SEED, MapPool
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
+from cpp_mujoco.agent.multi_map_replay import record_pool_demonstrations
 from cpp_mujoco.map_generator import generate_from_seed
 from cpp_mujoco.map_sets import map_set_spec
 from cpp_mujoco.map_symmetry import SYMMETRIES
 from cpp_mujoco.maps import load_map
+from cpp_mujoco.planners import make_planner
 from cpp_mujoco.policy import policy_identity
 
 from .test_general_agent import TINY
@@ -77,21 +79,50 @@ def test_the_config_refuses_bad_named_options():
         GeneralTrainConfig(named_maps=("A",), named_share=0.0)
     with pytest.raises(ValueError, match="repeat"):
         GeneralTrainConfig(named_maps=("A", "A"))
+    with pytest.raises(ValueError, match="named_demo_share"):
+        GeneralTrainConfig(named_maps=("A",), named_demo_share=float("nan"))
+    with pytest.raises(ValueError, match="needs named_maps"):
+        GeneralTrainConfig(named_demo_share=0.5)
+    with pytest.raises(ValueError, match="named_demo_budget_step"):
+        GeneralTrainConfig(named_maps=("A",), named_demo_budget_step=-1)
     stored = GeneralTrainConfig(named_maps=("A", "B")).to_dict()
     assert GeneralTrainConfig.from_dict(stored).named_maps == ("A", "B")
     old = {k: v for k, v in GeneralTrainConfig().to_dict().items() if "named" not in k}
     assert GeneralTrainConfig.from_dict(old).named_maps == ()  # a run from before the option
 
 
+def test_named_demonstrations_fly_every_budget_and_fill_their_share():
+    pool = MapPool.generate((16,), 2, 0).with_named([load_map("B")])
+    b = int(pool.named[0])
+    planner = make_planner("safe-greedy")
+    coarse = record_pool_demonstrations(pool, [0, 1, b], planner, 3, 0.95, 25)
+    fine = record_pool_demonstrations(pool, [0, 1, b], planner, 3, 0.95, [25, 25, 1], 0.4)
+    on_b = [int((d.map_index == b).sum()) for d in (coarse, fine)]
+    assert on_b[1] > 8 * on_b[0]  # 51 budgets against 3 (25, 50, 75)
+    assert (fine.map_index != b).sum() == (coarse.map_index != b).sum()  # the rest as before
+    rng = np.random.default_rng(0)
+    drawn = fine.map_index[fine._draw(4000, rng)]
+    assert abs((drawn == b).mean() - 0.4) < 0.03  # binomial sd 0.008
+    assert {0, 1} <= set(drawn.tolist())
+    uniform = coarse.map_index[coarse._draw(4000, rng)]
+    assert abs((uniform == b).mean() - on_b[0] / len(coarse)) < 0.03
+    with pytest.raises(ValueError, match="2 budget steps for 3 maps"):
+        record_pool_demonstrations(pool, [0, 1, b], planner, 3, 0.95, [25, 1])
+    with pytest.raises(ValueError, match="named and on generated"):
+        record_pool_demonstrations(pool, [0, 1], planner, 3, 0.95, 25, 0.4)
+
+
 def test_a_run_trains_on_its_named_map_with_demonstrations(tmp_path):
     config = GeneralTrainConfig(
         total_updates=20, **{**TINY, "learning_starts": 64, "named_maps": ("A",),
-                             "named_share": 0.5},
+                             "named_share": 0.5, "named_demo_budget_step": 5,
+                             "named_demo_share": 0.5},
     )  # fmt: skip
     trainer = GeneralTrainer(config, tmp_path)
     a = int(trainer.pool.named[0])
     assert trainer.pool.maps[a].label == "A" and len(trainer.pool) == 5
     assert a in set(trainer.demos.map_index.tolist())  # demonstrations on the named map too
+    assert trainer.demos.named_share == 0.5
     trainer.run(progress=False)
     flown = trainer.replay.map_index[: trainer.replay.pos].reshape(-1)  # rows written
     assert (flown == a).mean() > 0.2  # half the episodes start there

@@ -38,6 +38,10 @@ _GENERAL_HELP = {
     "demo_max_side": "the demo planner flies only maps of sides up to this (0 = all; the wind "
     "planners take minutes a 32x32 map)",
     "demo_budget_step": "demonstrations fly every n-th budget of each size class",
+    "named_demo_budget_step": "the --named-maps' demonstrations fly every n-th budget "
+    "(0 = --demo-budget-step; 1 = every budget of the protocol)",
+    "named_demo_share": "fraction of each demonstration minibatch drawn from the --named-maps "
+    "(0 = uniform over all recorded transitions)",
     "final_budget_step": "the final evaluation's budget step (1 = the full protocol)",
     "architecture": "the network: global-local (Theile et al. 2021: a crop and a pooled view "
     "of the map centred on the UAV) or fcn (fully convolutional, global max/mean pooling and "

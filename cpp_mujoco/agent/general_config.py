@@ -49,6 +49,12 @@ class GeneralTrainConfig(TrainConfig):
     # wind planners take about 5 min a 32×32 map at budget step 20 on one core
     demo_max_side: int = 0
     demo_budget_step: int = 10
+    # the named maps' demonstrations fly every n-th budget (0: demo_budget_step): a map the
+    # user brings is flown at every budget of the protocol, so its tour is shown at every one
+    named_demo_budget_step: int = 0
+    # fraction of each demonstration minibatch drawn from the named maps (0: uniform over all
+    # recorded transitions, so a map weighs as many transitions as its planner flew)
+    named_demo_share: float = 0.0
     final_budget_step: int = 1  # the final evaluation's budget step (1: the full protocol)
     # --- network ------------------------------------------------------------------------------
     # "global-local": GeneralQNetwork, Theile et al. 2021 (the fields below are their values);
@@ -122,6 +128,15 @@ class GeneralTrainConfig(TrainConfig):
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if not 0.0 <= self.named_share < 1.0:  # NaN fails too
             raise ValueError(f"named_share must lie in [0, 1), got {self.named_share}")
+        if self.named_demo_budget_step < 0:
+            raise ValueError(
+                f"named_demo_budget_step must be >= 0 (0: demo_budget_step), "
+                f"got {self.named_demo_budget_step}"
+            )
+        if not 0.0 <= self.named_demo_share < 1.0:  # NaN fails too
+            raise ValueError(f"named_demo_share must lie in [0, 1), got {self.named_demo_share}")
+        if self.named_demo_share and not self.named_maps:
+            raise ValueError("named_demo_share > 0 needs named_maps (whose demonstrations)")
         if self.named_maps and not self.named_share:
             raise ValueError("named_maps need named_share > 0 (the share of their episodes)")
         if len(set(self.named_maps)) != len(self.named_maps):

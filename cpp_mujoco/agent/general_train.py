@@ -153,12 +153,18 @@ class GeneralTrainer(Trainer):
             # the pool holds maps_per_size maps of each size in turn: the first of each size,
             # and every named map
             ids = [k * c.maps_per_size + j for k in range(len(c.sizes)) for j in range(c.demo_maps)]
-            ids += [int(i) for i in self.pool.named]
+            named = [int(i) for i in self.pool.named]
+            steps = [c.demo_budget_step] * len(ids) + [
+                c.named_demo_budget_step or c.demo_budget_step
+            ] * len(named)
+            ids += named
             if c.demo_max_side:  # only the maps small enough to demonstrate
-                ids = [i for i in ids if max(self.pool.maps[i].shape) <= c.demo_max_side]
+                kept = [max(self.pool.maps[i].shape) <= c.demo_max_side for i in ids]
+                ids = [i for i, keep in zip(ids, kept, strict=True) if keep]
+                steps = [s for s, keep in zip(steps, kept, strict=True) if keep]
             self.demos = record_pool_demonstrations(
                 self.pool, ids, make_planner(c.demo_planner, c.wind_margin), c.n_step, c.gamma,
-                c.demo_budget_step,
+                steps, c.named_demo_share,
             )  # fmt: skip
         self.torch_gen = torch.Generator().manual_seed(c.seed)
         self.obs, _ = self.env.reset(seed=c.seed)

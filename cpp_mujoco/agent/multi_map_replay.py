@@ -99,9 +99,28 @@ class PooledDemonstrations:
     next_state: np.ndarray  # (S,) bootstrap state's index (itself where discount is 0)
     landing_ratio: float  # the planner's, mean over the recorded maps
     coverage_ratio: float
+    named_share: float = 0.0  # of each minibatch from the pool's named maps (0: uniform)
+
+    def __post_init__(self) -> None:
+        is_named = np.isin(self.map_index, self.pool.named)
+        self._named_rows, self._other_rows = np.flatnonzero(is_named), np.flatnonzero(~is_named)
+        if self.named_share and (not self._named_rows.size or not self._other_rows.size):
+            raise ValueError(
+                "named_share needs demonstrations on named and on generated maps alike"
+            )
 
     def __len__(self) -> int:
         return self.action.size
+
+    def _draw(self, batch_size: int, rng: np.random.Generator) -> np.ndarray:
+        """Transition indices: uniform, or ``named_share`` of them (binomially) from the
+        named maps' and the rest from the generated maps' transitions."""
+        if not self.named_share:
+            return rng.integers(len(self), size=batch_size)
+        k = int(rng.binomial(batch_size, self.named_share))
+        named = self._named_rows[rng.integers(self._named_rows.size, size=k)]
+        other = self._other_rows[rng.integers(self._other_rows.size, size=batch_size - k)]
+        return np.concatenate([named, other])
 
     def _states(self, i: np.ndarray) -> tuple[np.ndarray, ...]:
         index, position = self.map_index[i], self.position[i]
@@ -110,8 +129,8 @@ class PooledDemonstrations:
         return grid, self.budget[i][:, None], self.wind[i], home
 
     def sample(self, batch_size: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        """Uniformly drawn transitions in :meth:`ReplayBuffer.transitions`' layout."""
-        i = rng.integers(len(self), size=batch_size)
+        """Drawn transitions (:meth:`_draw`) in :meth:`ReplayBuffer.transitions`' layout."""
+        i = self._draw(batch_size, rng)
         nxt = self.next_state[i]
         return {
             "obs": self._states(i),
@@ -126,16 +145,26 @@ class PooledDemonstrations:
 
 
 def record_pool_demonstrations(
-    pool: MapPool, map_ids: list[int], planner, n_step: int, gamma: float, budget_step: int = 1
+    pool: MapPool,
+    map_ids: list[int],
+    planner,
+    n_step: int,
+    gamma: float,
+    budget_step: int | list[int] = 1,
+    named_share: float = 0.0,
 ) -> PooledDemonstrations:
-    """``planner`` over every landing cell × every ``budget_step``-th budget of each map
-    ``map_ids`` of the pool (:func:`record_demonstrations`), kept compact."""
+    """``planner`` over every landing cell × every ``budget_step``-th budget (one step for all,
+    or one per map) of each map ``map_ids`` of the pool (:func:`record_demonstrations`), kept
+    compact; ``named_share``: see :class:`PooledDemonstrations`."""
+    steps = [budget_step] * len(map_ids) if isinstance(budget_step, int) else list(budget_step)
+    if len(steps) != len(map_ids):
+        raise ValueError(f"{len(steps)} budget steps for {len(map_ids)} maps")
     parts: dict[str, list[np.ndarray]] = {}
     landing, coverage = [], []
     offset = 0
-    for m in map_ids:
+    for m, step in zip(map_ids, steps, strict=True):
         grid_map, config = pool.maps[m], pool.configs[m]
-        budgets = protocol_budgets(config, budget_step)
+        budgets = protocol_budgets(config, step)
         demo = record_demonstrations(grid_map, config, planner, n_step, gamma, budgets)
         landing.append(demo.landing_ratio)
         coverage.append(demo.coverage_ratio)
@@ -168,4 +197,5 @@ def record_pool_demonstrations(
         **arrays,
         landing_ratio=float(np.mean(landing)),
         coverage_ratio=float(np.mean(coverage)),
+        named_share=named_share,
     )
