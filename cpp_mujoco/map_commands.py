@@ -31,6 +31,11 @@ def add_generate_options(p) -> None:
         help=f"with --generate: the maps' side, cells (default: {DEFAULT_SIZE})",
     )  # fmt: skip
     p.add_argument(
+        "--door-wall", type=float, metavar="P",
+        help="with --generate: the chance each map has a wall across it with one door of 1-2 "
+        "cells, as on map C (default: 0, the held-out v1 sets' generator)",
+    )  # fmt: skip
+    p.add_argument(
         "--overwrite", action="store_true",
         help="with --generate: write into a non-empty --out (maps of the same name are replaced)",
     )  # fmt: skip
@@ -39,7 +44,8 @@ def add_generate_options(p) -> None:
 def add_map_set_options(p) -> None:
     p.add_argument(
         "--map-set", metavar="NAME",
-        help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1), flown on "
+        help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1, doors16-v1: "
+        "every map with a wall and one door), flown on "
         "--backend with its size class's budgets (16x16: 25..75, 32x32: 50..150); writes a JSON "
         "and its figures (per-map coverage, example trajectories) into --out",
     )  # fmt: skip
@@ -53,7 +59,7 @@ def add_map_set_options(p) -> None:
 def check_generate_options(args) -> bool:
     """Whether ``maps`` is to generate; a --generate-only option without it is bad input."""
     if args.generate is None:
-        given = [o for o in ("seed", "size") if getattr(args, o) is not None]
+        given = [o for o in ("seed", "size", "door_wall") if getattr(args, o) is not None]
         given += ["overwrite"] if args.overwrite else []
         if given:
             flags = ", ".join("--" + o for o in given)
@@ -81,7 +87,7 @@ def _claim_folder(path: str, overwrite: bool) -> Path:
 
 def cmd_generate(args) -> None:
     """Write ``--generate N`` maps from seeds ``--seed`` on, one line per map."""
-    from cpp_mujoco.map_generator import generate_from_seed
+    from cpp_mujoco.map_generator import GeneratorConfig, generate_from_seed
     from cpp_mujoco.map_sets import HELDOUT_SEEDS
     from cpp_mujoco.maps import MAX_SIDE
     from cpp_mujoco.size_classes import budget_range
@@ -91,6 +97,8 @@ def cmd_generate(args) -> None:
     seeds = range(first, first + args.generate)
     if size > MAX_SIDE:
         raise ValueError(f"--size {size}: maps are at most {MAX_SIDE} cells a side")
+    options = {} if args.door_wall is None else {"door_wall": args.door_wall}
+    GeneratorConfig.from_options(**options)  # a bad chance is an error before the folder
     out = _claim_folder(args.out, args.overwrite)
     if seeds.start < HELDOUT_SEEDS.stop and HELDOUT_SEEDS.start < seeds.stop:
         print(
@@ -99,7 +107,7 @@ def cmd_generate(args) -> None:
             file=sys.stderr,
         )
     for seed in seeds:
-        grid_map = generate_from_seed(seed, size)
+        grid_map = generate_from_seed(seed, size, **options)
         path = out / f"{grid_map.name}.png"
         grid_map.save(path)
         c = grid_map.counts()

@@ -3,9 +3,10 @@
 A generated map has what the paper's maps have, drawn at random (after the map generator of
 Theile et al.'s follow-up work, written anew here): a landing zone of a few cells anywhere on the
 map (a rectangle or an irregular blob), rectangular no-fly blocks with some irregular blobs and
-thin walls among them, and target regions of varied shape covering 20–60 % of the cells; target
-regions overlap no-fly blocks (yellow cells, covered only from beside them), and sometimes a whole
-block is yellow, as in map B.
+thin walls among them (and, as an option, a wall across the map with one door, as on map C),
+and target regions of varied shape covering 20–60 % of the cells; target regions overlap no-fly
+blocks (yellow cells, covered only from beside them), and sometimes a whole block is yellow, as
+in map B.
 
 Every drawn map is checked (:func:`check_map`) and drawn again from the same random stream if it
 fails, so ``generate(np.random.default_rng(seed), size)`` is one fixed, valid map per seed.
@@ -48,6 +49,10 @@ class GeneratorConfig:
     target_region_cells: tuple[int, int] = (6, 40)  # cells per target region (scaled by (s/16)²)
     target_irregular: float = 0.4  # chance a target region is a blob, not a rectangle
     yellow_block: float = 0.5  # chance one no-fly block is made target as a whole (yellow)
+    # chance of a wall across the whole map, 1–2 cells thick, with one door of 1–2 cells: the
+    # far side is reached only through the door, as on the paper's map C (0: the v1 sets'
+    # maps, which seldom have one; its draws are made only when it is above 0)
+    door_wall: float = 0.0
     max_attempts: int = 100  # maps drawn (and checked) before giving up with an error
 
     def __post_init__(self) -> None:
@@ -190,6 +195,23 @@ def _nfz_blocks(rng: np.random.Generator, size: int, c: GeneratorConfig) -> list
     return blocks
 
 
+def _door_wall(rng: np.random.Generator, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """A wall across the map, 1–2 cells thick, at least 2 cells from the edges it runs along,
+    with a door of 1–2 cells; horizontal or vertical. Also the passage: the door and the cell
+    before and after it, which no block may close."""
+    vertical = rng.random() < 0.5
+    thick = _draw_int(rng, (1, 2))
+    at = _draw_int(rng, (2, size - 2 - thick))
+    door = _draw_int(rng, (1, 2))
+    opening = _draw_int(rng, (0, size - door))
+    wall = np.zeros((size, size), dtype=bool)
+    passage = np.zeros_like(wall)
+    wall[at : at + thick] = True
+    wall[at : at + thick, opening : opening + door] = False
+    passage[at - 1 : at + thick + 1, opening : opening + door] = True
+    return (wall.T.copy(), passage.T.copy()) if vertical else (wall, passage)
+
+
 def _targets(
     rng: np.random.Generator, size: int, c: GeneratorConfig, target: np.ndarray, free: np.ndarray
 ) -> np.ndarray:
@@ -216,6 +238,9 @@ def _draw(rng: np.random.Generator, size: int, c: GeneratorConfig) -> dict[str, 
     nfz = np.zeros_like(landing)
     for block in blocks:
         nfz |= block
+    if c.door_wall and rng.random() < c.door_wall:  # no draw at 0: the v1 maps stay as they are
+        wall, passage = _door_wall(rng, size)
+        nfz = (nfz | wall) & ~passage
     nfz &= ~landing
     target = np.zeros_like(landing)
     if blocks and rng.random() < c.yellow_block:

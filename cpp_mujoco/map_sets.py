@@ -30,7 +30,9 @@ class MapSetError(MapError):
 @dataclass(frozen=True)
 class MapSetSpec:
     """A set's definition: ``count`` maps of ``size`` × ``size`` from seeds ``first_seed`` on,
-    by generator version ``generator_version``; ``digests`` are the committed maps' digests."""
+    by generator version ``generator_version`` with the generator ``options`` (pairs of a
+    :class:`~cpp_mujoco.map_generator.GeneratorConfig` field and its value; none: the
+    defaults); ``digests`` are the committed maps' digests."""
 
     name: str
     version: int
@@ -39,6 +41,7 @@ class MapSetSpec:
     count: int
     generator_version: int
     digests: tuple[str, ...]
+    options: tuple[tuple[str, float], ...] = ()
 
     @property
     def seeds(self) -> range:
@@ -60,6 +63,7 @@ class MapSetSpec:
             "evaluated": used,
             "complete": used == self.count,
             "generator_version": self.generator_version,
+            **({"generator_options": dict(self.options)} if self.options else {}),
         }
 
 
@@ -76,6 +80,7 @@ def _read(path: Path = MAP_SETS_FILE) -> dict[str, MapSetSpec]:
             count=int(entry["count"]),
             generator_version=int(entry["generator_version"]),
             digests=tuple(entry["digests"]),
+            options=tuple(sorted(entry.get("generator_options", {}).items())),
         )
         if len(specs[name].digests) != specs[name].count:
             raise MapSetError(f"{path}: set {name!r} lists {len(entry['digests'])} digests")
@@ -83,7 +88,7 @@ def _read(path: Path = MAP_SETS_FILE) -> dict[str, MapSetSpec]:
 
 
 def map_set_names() -> list[str]:
-    """The known sets (``heldout16-v1``, ``heldout32-v1`` …)."""
+    """The known sets (``heldout16-v1``, ``heldout32-v1``, ``doors16-v1`` …)."""
     return sorted(_read())
 
 
@@ -100,7 +105,7 @@ def generate_map_set(spec: MapSetSpec, first: int | None = None) -> list[GridMap
     from cpp_mujoco.map_generator import generate_from_seed
 
     seeds = spec.seeds if first is None else spec.seeds[:first]
-    return [generate_from_seed(seed, spec.size) for seed in seeds]
+    return [generate_from_seed(seed, spec.size, **dict(spec.options)) for seed in seeds]
 
 
 def load_map_set(name: str, first: int | None = None) -> list[GridMap]:

@@ -15,10 +15,13 @@ from cpp_mujoco.io import atomic_write_text
 from cpp_mujoco.map_generator import GENERATOR_VERSION
 from cpp_mujoco.map_sets import HELDOUT_SEEDS, MAP_SETS_FILE, MapSetSpec, generate_map_set
 
-# name → (version, size, first seed, count); seeds from HELDOUT_SEEDS only
+# name → (version, size, first seed, count, generator options); seeds from HELDOUT_SEEDS only,
+# a set's seeds apart from every other set's of its size
 SETS = {
-    "heldout16-v1": (1, 16, 1_000_000, 100),
-    "heldout32-v1": (1, 32, 1_000_000, 30),
+    "heldout16-v1": (1, 16, 1_000_000, 100, {}),
+    "heldout32-v1": (1, 32, 1_000_000, 30, {}),
+    # every map with a wall across it and one door, as on map C: the v1 sets seldom have one
+    "doors16-v1": (1, 16, 1_100_000, 50, {"door_wall": 1.0}),
 }
 
 NOTE = (
@@ -32,16 +35,18 @@ NOTE = (
 def main() -> int:
     data = json.loads(MAP_SETS_FILE.read_text()) if MAP_SETS_FILE.is_file() else {"sets": {}}
     failed = False
-    for name, (version, size, first_seed, count) in SETS.items():
+    for name, (version, size, first_seed, count, options) in SETS.items():
         if first_seed not in HELDOUT_SEEDS or first_seed + count - 1 not in HELDOUT_SEEDS:
             raise SystemExit(f"{name}: seeds must lie in the held-out range {HELDOUT_SEEDS}")
         entry = data["sets"].get(name)
-        spec = MapSetSpec(name, version, size, first_seed, count, GENERATOR_VERSION, ())
+        pairs = tuple(sorted(options.items()))
+        spec = MapSetSpec(name, version, size, first_seed, count, GENERATOR_VERSION, (), pairs)
         digests = [m.digest for m in generate_map_set(spec)]
         if entry is None:
             data["sets"][name] = {
                 "version": version, "size": size, "first_seed": first_seed, "count": count,
-                "generator_version": GENERATOR_VERSION, "digests": digests,
+                "generator_version": GENERATOR_VERSION,
+                **({"generator_options": options} if options else {}), "digests": digests,
             }  # fmt: skip
             print(f"{name}: added {count} maps of {size}x{size}")
         elif entry["digests"] != digests:

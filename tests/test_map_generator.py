@@ -132,6 +132,42 @@ def test_generated_maps_are_valid(size, count):
     assert any(r > 0 and c > 0 for r, c in starts)  # not always at the border
 
 
+def _door_walls(m: GridMap) -> list[tuple[np.ndarray, int, int, np.ndarray]]:
+    """(no-fly layer, first line, last line, door cells) of each wall across ``m``: a run of
+    rows (of ``m`` or, for a vertical wall, of its transpose) closed to flight but for the same
+    gap of 1-2 adjacent cells."""
+    found = []
+    for nfz, landing in ((m.nfz, m.landing), (m.nfz.T, m.landing.T)):
+        gaps = {}
+        for i in range(2, nfz.shape[0] - 2):
+            gap = np.flatnonzero(~nfz[i] & ~landing[i])
+            if 1 <= gap.size <= 2 and np.ptp(gap) == gap.size - 1:
+                gaps[i] = tuple(gap)
+        for i, gap in gaps.items():
+            if gaps.get(i - 1) != gap:  # the first line of a run
+                last = i + 1 if gaps.get(i + 1) == gap else i
+                found.append((nfz, i, last, np.asarray(gap)))
+    return found
+
+
+def test_door_walls_cross_the_map_and_leave_the_door_open():
+    maps = [generate_from_seed(seed, 16, door_wall=1.0) for seed in range(20)]
+    for m in maps:
+        check_map(m)
+        # the door leads into open cells on both sides of the wall (no block closes it)
+        assert any(
+            not nfz[first - 1, gap].any() and not nfz[last + 1, gap].any()
+            for nfz, first, last, gap in _door_walls(m)
+        ), f"{m.name} has no wall with an open door"
+    assert maps[0].name == f"gen16-s0-{maps[0].digest[:8]}"  # the option is in the name
+    # at 0 no draw is made: the maps are those of the v1 sets' generator
+    assert generate_from_seed(3, 16, door_wall=0.0).digest == generate_from_seed(3, 16).digest
+    half = [bool(_door_walls(generate_from_seed(s, 16, door_wall=0.5))) for s in range(40)]
+    assert 8 <= sum(half) <= 32  # about half (binomial sd 3.2), a few v1 maps have one too
+    with pytest.raises(ValueError, match="door_wall"):
+        generate_from_seed(3, 16, door_wall=1.5)
+
+
 def test_size_classes():
     assert budget_range(16) == (25, 75) and budget_range(32) == (50, 150)
     assert budget_range(8) == (13, 38)
@@ -156,6 +192,10 @@ def test_maps_generate_writes_loadable_pngs(tmp_path, capsys):
     assert "not empty" in capsys.readouterr().err
     assert main(["maps", "--generate", "1", "--size", "32", "--out", str(out), "--overwrite"]) == 0
     assert load_map(out / "gen32-s0.png").shape == (32, 32)
+    argv = ["maps", "--generate", "1", "--door-wall", "1", "--out", str(tmp_path / "doors")]
+    assert main(argv) == 0
+    door = generate_from_seed(0, 16, door_wall=1.0)
+    assert load_map(tmp_path / "doors" / f"{door.name}.png").digest == door.digest
 
 
 def test_maps_generate_refuses_bad_input(tmp_path, capsys):
@@ -171,6 +211,8 @@ def test_maps_generate_refuses_bad_input(tmp_path, capsys):
         (["--generate", "2", "--out", str(blocker)], "is a file"),
         (["--generate", "2"], "needs --out"),
         (["--seed", "3"], "only with --generate"),
+        (["--door-wall", "1"], "only with --generate"),
+        (["--generate", "1", "--door-wall", "nan", "--out", str(tmp_path / "y")], "door_wall"),
     ]:
         assert main(["maps", *argv]) == 2
         err = capsys.readouterr().err
@@ -190,7 +232,9 @@ def test_heldout_sets_regenerate_to_the_committed_digests():
 
 def test_load_map_set_checks_digests(monkeypatch):
     assert len(load_map_set("heldout16-v1", first=2)) == 2
-    with pytest.raises(MapSetError, match="unknown map set 'nope'; known: heldout16-v1"):
+    with pytest.raises(
+        MapSetError, match="unknown map set 'nope'; known: doors16-v1, heldout16-v1"
+    ):
         load_map_set("nope")
     with pytest.raises(MapSetError, match="cannot take the first 101"):
         load_map_set("heldout16-v1", first=101)
@@ -238,6 +282,6 @@ def test_map_set_refuses_what_it_cannot_run(tmp_path, capsys, extra, message):
 
 def test_map_set_bad_names(tmp_path, capsys):
     assert main(["evaluate", "--map-set", "nope", "--out", str(tmp_path)]) == 2
-    assert "known: heldout16-v1, heldout32-v1" in capsys.readouterr().err
+    assert "known: doors16-v1, heldout16-v1, heldout32-v1" in capsys.readouterr().err
     assert main(["evaluate", "--first", "2", "--out", str(tmp_path)]) == 2
     assert "--first needs --map-set" in capsys.readouterr().err

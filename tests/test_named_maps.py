@@ -53,6 +53,19 @@ def test_maps_that_do_not_fit_are_refused(maps, match):
         MapPool.generate((16,), 2, 0).with_named(maps)
 
 
+def test_door_wall_training_maps_are_drawn_and_recorded():
+    config = GeneralTrainConfig(sizes=(16,), maps_per_size=3, door_walls=1.0)
+    pool = training_pool(config)
+    expected = [generate_from_seed(seed, 16, door_wall=1.0).digest for seed in range(3)]
+    assert [m.digest for m in pool.maps] == expected
+    assert pool.identity()["generator"] == {"door_wall": 1.0}
+    assert pool.flown_with(None).generator == {"door_wall": 1.0}
+    plain = training_pool(GeneralTrainConfig(sizes=(16,), maps_per_size=3))
+    assert "generator" not in plain.identity() and plain.digest != pool.digest
+    with pytest.raises(ValueError, match="door_walls"):
+        GeneralTrainConfig(door_walls=float("nan"))
+
+
 def test_environments_fly_the_named_maps_at_their_share():
     pool = MapPool.generate((16,), 30, 0).with_named([load_map("B")])
     env = MultiMapVectorEnv(pool, 8, named_share=0.3)

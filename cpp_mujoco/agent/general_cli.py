@@ -29,6 +29,8 @@ _GENERAL_HELP = {
     "maps_per_size": "generated training maps of each size (seeds map-seed on)",
     "map_seed": "first training map seed (training seeds stay below 1,000,000)",
     "episodes_per_map": "episodes an environment flies on a map before it draws another",
+    "door_walls": "chance a generated training map has a wall across it with one door (as on "
+    "map C; the generator's door_wall)",
     "named_maps": "maps trained beside the generated ones: bundled names or PNG paths (the "
     "paper's A B C, your site); each flies its size class's budgets, with demonstrations",
     "named_share": "fraction of the training episodes flown on the --named-maps",

@@ -35,6 +35,9 @@ class GeneralTrainConfig(TrainConfig):
     maps_per_size: int = 512  # training maps per size: seeds map_seed .. map_seed + count − 1
     map_seed: int = 0  # first training seed (training seeds stay below 1,000,000)
     episodes_per_map: int = 1  # a slot draws a new map after this many episodes (1: every reset)
+    # chance a generated training map has a wall across it with one door (the generator's
+    # door_wall; 0: the maps of runs from before the option). Validation maps keep the default
+    door_walls: float = 0.0
     # maps a user brings (bundled names or PNG paths: the paper's A B C, a site) trained beside
     # the generated ones, each with its size class's budgets and demonstrations on every one
     named_maps: tuple[str, ...] = ()
@@ -126,6 +129,8 @@ class GeneralTrainConfig(TrainConfig):
                      "final_budget_step", *NETWORK_FIELDS):  # fmt: skip
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if not 0.0 <= self.door_walls <= 1.0:  # NaN fails too
+            raise ValueError(f"door_walls is a chance in 0..1, got {self.door_walls}")
         if not 0.0 <= self.named_share < 1.0:  # NaN fails too
             raise ValueError(f"named_share must lie in [0, 1), got {self.named_share}")
         if self.named_demo_budget_step < 0:

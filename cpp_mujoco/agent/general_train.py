@@ -107,7 +107,10 @@ def training_pool(config: GeneralTrainConfig, per_size: int | None = None) -> Ma
     """The generated training maps (the first ``per_size`` of each size if given: a check)
     plus the config's named ones (``MapError`` for a name or file that is not a map,
     ``ValueError`` for one that does not fit)."""
-    pool = MapPool.generate(config.sizes, per_size or config.maps_per_size, config.map_seed)
+    options = {"door_wall": config.door_walls} if config.door_walls else {}
+    pool = MapPool.generate(
+        config.sizes, per_size or config.maps_per_size, config.map_seed, **options
+    )
     if not config.named_maps:
         return pool
     named = [load_map(name) for name in config.named_maps]

@@ -49,26 +49,31 @@ class MapPool:
     layers: np.ndarray
     # the margin the return rule keeps in wind (:meth:`flown_with`; None: ReturnMargin's default)
     margin: ReturnMargin | None = None
+    # the generator options the generated maps were drawn with (empty: the defaults)
+    generator: dict = field(default_factory=dict)
     # each map's moves home per padded cell, filled on first use (:meth:`moves_home`; −1: not yet)
     _home: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
     # and its actions home after each action per padded cell (:meth:`safe_actions`)
     _after: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
-    def generate(cls, sizes: tuple[int, ...], per_size: int, first_seed: int) -> MapPool:
+    def generate(cls, sizes: tuple[int, ...], per_size: int, first_seed: int, **options) -> MapPool:
         """``per_size`` maps of each size from seeds ``first_seed`` on (the same seeds for
-        every size: a seed gives another map at another size)."""
+        every size: a seed gives another map at another size), drawn with the generator
+        ``options`` (:class:`~cpp_mujoco.map_generator.GeneratorConfig` fields)."""
         if per_size < 1 or not sizes:
             raise ValueError(f"a map pool needs sizes and >= 1 map per size, got {per_size}")
         seeds = [first_seed + i for i in range(per_size)]
         maps, used = [], []
         for size in sizes:
-            maps += [generate_from_seed(seed, size) for seed in seeds]
+            maps += [generate_from_seed(seed, size, **options) for seed in seeds]
             used += seeds
-        return cls._of(maps, used, max(sizes))
+        return cls._of(maps, used, max(sizes), options)
 
     @classmethod
-    def _of(cls, maps: list[GridMap], seeds: list[int], side: int) -> MapPool:
+    def _of(
+        cls, maps: list[GridMap], seeds: list[int], side: int, generator: dict | None = None
+    ) -> MapPool:
         layers = np.zeros((len(maps), 3, side, side), dtype=np.int8)
         layers[:, NFZ_CHANNEL] = 1
         for i, grid_map in enumerate(maps):
@@ -76,7 +81,8 @@ class MapPool:
             layers[i, :, :h, :w] = grid_map.layers
         layers.flags.writeable = False
         configs = {size: size_config(size) for size in {max(m.shape) for m in maps}}
-        return cls(maps, seeds, side, [configs[max(m.shape)] for m in maps], layers)
+        configs = [configs[max(m.shape)] for m in maps]
+        return cls(maps, seeds, side, configs, layers, generator=dict(generator or {}))
 
     def with_named(self, named: list[GridMap]) -> MapPool:
         """This pool plus maps a user brings (the paper's A, B, C or a site's PNG), each flown
@@ -98,7 +104,7 @@ class MapPool:
                 )
             digests.add(grid_map.digest)
         seeds = self.seeds + [NAMED_SEED] * len(named)
-        return MapPool._of(self.maps + list(named), seeds, self.side)
+        return MapPool._of(self.maps + list(named), seeds, self.side, self.generator)
 
     def flown_with(
         self,
@@ -112,7 +118,9 @@ class MapPool:
         (:meth:`safe_actions`)."""
         changes = {"wind": wind, **({"rewards": rewards} if rewards is not None else {})}
         configs = [replace(config, **changes) for config in self.configs]
-        return MapPool(self.maps, self.seeds, self.side, configs, self.layers, margin)
+        return MapPool(
+            self.maps, self.seeds, self.side, configs, self.layers, margin, self.generator
+        )
 
     @property
     def wind(self) -> GridWind | None:
@@ -148,6 +156,7 @@ class MapPool:
             "side": self.side,
             "digest": self.digest,
             **(named if named["named"] else {}),
+            **({"generator": dict(self.generator)} if self.generator else {}),
         }
 
     def moves_home(self, map_index: np.ndarray, position: np.ndarray) -> np.ndarray:
