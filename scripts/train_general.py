@@ -1,5 +1,5 @@
 """Train the bundled general agent (``load_agent("general")``) with the project's command, in
-three stages, and check it on its validation maps.
+four stages, and check it on its validation maps.
 
     python scripts/train_general.py --out runs/general [--install] [-- more train-general options]
 
@@ -10,9 +10,12 @@ first 25,000 updates of a 200,000-update schedule. Stage 2 (``OUT/stage2``) star
 fly) for 36,000 updates. Stage 3 (``OUT/stage3``) starts from stage 2's ``best.pt`` with the
 moves to new targets as an input (zero weights at first), 8,192 generated maps per size and the
 paper's maps A, B and C in the pool (15 % of the episodes), for 36,000 updates at half the
-learning rate; its ``best.pt`` (chosen on the validation maps) is the agent.
-``--install`` copies it to ``cpp_mujoco/agent/bundled/general.pt`` (weights + metadata only).
-``--wind`` adds stage 4 (``OUT/stage4-wind``): stage 3's ``best.pt`` fine-tuned in the grid's
+learning rate. Stage 4 (``OUT/stage4``) starts from stage 3's ``best.pt`` with A, B and C in 30 %
+of the episodes, their demonstrations at every budget of the protocol and 40 % of each
+demonstration minibatch drawn from them, at 1e-4, for 12,000 updates; its ``best.pt`` (chosen on
+the validation maps) is the agent. ``--install`` copies it to
+``cpp_mujoco/agent/bundled/general.pt`` (weights + metadata only).
+``--wind`` replaces stage 4 by ``OUT/stage4-wind``: stage 3's ``best.pt`` fine-tuned in the grid's
 wind option (0–12 m/s, 35 % calm, the wind inputs starting at zero weight, the return mask priced
 at the observed wind), guided by ``safe-greedy-wind`` and taught by ``beam-search-wind`` on the
 16×16 maps (the wind planners take minutes a 32×32 map) for 12,000 updates; its ``best.pt``
@@ -52,6 +55,13 @@ STAGES = [  # (folder, train-general options)
         "--guide-updates", "200000", "--total-updates", "36000", "--eval-every", "4000",
         "--val-maps-per-size", "8",
     ]),
+    ("stage4", [
+        "--init-from", "{stage3}/best.pt", "--target-input", "--named-maps", "A", "B", "C",
+        "--named-share", "0.3", "--named-demo-budget-step", "1", "--named-demo-share", "0.4",
+        "--maps-per-size", "8192", "--demo-maps-per-size", "32", "--learning-rate", "0.0001",
+        "--guide-updates", "200000", "--total-updates", "12000", "--eval-every", "3000",
+        "--val-maps-per-size", "8", "--checkpoint-every", "1500",
+    ]),
 ]  # fmt: skip
 
 
@@ -69,7 +79,7 @@ WIND_VALIDATION = GridWind(max_speed=12.0, calm_fraction=0.35)  # the stage's ow
 
 def stage_commands(out: Path, extra: list[str], wind: bool = False) -> list[tuple[Path, list[str]]]:
     """(folder, ``cpp-mujoco`` argv) of each stage in ``out``, in order (``wind``: with stage 4)."""
-    stages = [*STAGES, WIND_STAGE] if wind else STAGES
+    stages = [*STAGES[:3], WIND_STAGE] if wind else STAGES  # the wind stage starts at stage 3
     names = {folder: str(out / folder) for folder, _ in stages}
     runs = []
     for folder, options in stages:
