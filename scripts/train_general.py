@@ -40,7 +40,7 @@ from cpp_mujoco.cli import main as cli_main
 from cpp_mujoco.grid.wind import GridWind  # the `cpp-mujoco` command itself
 from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
 
-STAGES = [  # (folder, train-general options)
+BASE_STAGES = [  # (folder, train-general options): stages 1-3, which the calm and wind agents share
     ("stage1", [
         "--no-return-mask", "--guide-updates", "200000", "--eval-every", "5000",
         "--stop-after-updates", "25000",
@@ -55,14 +55,15 @@ STAGES = [  # (folder, train-general options)
         "--guide-updates", "200000", "--total-updates", "36000", "--eval-every", "4000",
         "--val-maps-per-size", "8",
     ]),
-    ("stage4", [
-        "--init-from", "{stage3}/best.pt", "--target-input", "--named-maps", "A", "B", "C",
-        "--named-share", "0.3", "--named-demo-budget-step", "1", "--named-demo-share", "0.4",
-        "--maps-per-size", "8192", "--demo-maps-per-size", "32", "--learning-rate", "0.0001",
-        "--guide-updates", "200000", "--total-updates", "12000", "--eval-every", "3000",
-        "--val-maps-per-size", "8", "--checkpoint-every", "1500",
-    ]),
 ]  # fmt: skip
+CALM_STAGE = ("stage4", [
+    "--init-from", "{stage3}/best.pt", "--target-input", "--named-maps", "A", "B", "C",
+    "--named-share", "0.3", "--named-demo-budget-step", "1", "--named-demo-share", "0.4",
+    "--maps-per-size", "8192", "--demo-maps-per-size", "32", "--learning-rate", "0.0001",
+    "--guide-updates", "200000", "--total-updates", "12000", "--eval-every", "3000",
+    "--val-maps-per-size", "8", "--checkpoint-every", "1500",
+])  # fmt: skip
+STAGES = [*BASE_STAGES, CALM_STAGE]
 
 
 WIND_STAGE = ("stage4-wind", [
@@ -78,8 +79,9 @@ WIND_VALIDATION = GridWind(max_speed=12.0, calm_fraction=0.35)  # the stage's ow
 
 
 def stage_commands(out: Path, extra: list[str], wind: bool = False) -> list[tuple[Path, list[str]]]:
-    """(folder, ``cpp-mujoco`` argv) of each stage in ``out``, in order (``wind``: with stage 4)."""
-    stages = [*STAGES[:3], WIND_STAGE] if wind else STAGES  # the wind stage starts at stage 3
+    """(folder, ``cpp-mujoco`` argv) of each stage in ``out``, in order (``wind``: the wind stage
+    in place of stage 4)."""
+    stages = [*BASE_STAGES, WIND_STAGE] if wind else STAGES
     names = {folder: str(out / folder) for folder, _ in stages}
     runs = []
     for folder, options in stages:
