@@ -103,7 +103,7 @@ def main(argv=None) -> int:
     )
     p.add_argument("--out", default="runs/general", help="one run folder per stage in here")
     p.add_argument("--install", action="store_true", help="copy best.pt into the package")
-    p.add_argument("--wind", action="store_true", help="stage 4: the general agent in wind")
+    p.add_argument("--wind", action="store_true", help="the wind stage in place of stage 4")
     p.add_argument("extra", nargs="*", help="further train-general options, after --")
     args = p.parse_args(argv)
     out, t0 = Path(args.out), time.time()
@@ -111,7 +111,7 @@ def main(argv=None) -> int:
     for folder, cmd in runs:
         if (folder / "checkpoint.pt").exists():
             if folder != runs[-1][0] and (folder / "final_eval.json").exists():
-                continue  # a finished first stage: its agent.pt is the next start
+                continue  # a finished earlier stage: its weights start the next
             cmd = [*cmd, "--resume"]
         code = _run(cmd)
         if code != 0:
