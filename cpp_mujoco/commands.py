@@ -174,7 +174,9 @@ def cmd_evaluate(args) -> None:
         from cpp_mujoco.agent import load_agent
         from cpp_mujoco.map_commands import agent_entry
 
-        policies += [agent_entry(s, load_agent(s), args.symmetric_q) for s in args.agent]
+        policies += [
+            agent_entry(s, load_agent(s), args.symmetric_q, args.finish_mask) for s in args.agent
+        ]
     out = out_dir(args.out)
     extra: dict = {"progress": progress_wanted(args)}
     extra["budgets"] = protocol_budgets(step=args.budget_step)
@@ -326,6 +328,11 @@ def add_evaluate(sub) -> None:
         "--symmetric-q", action=argparse.BooleanOptionalAction, default=None,
         help="agents act on Q-values averaged over the map's rotations and mirror images (8 "
         "readings a step), or --no-symmetric-q on their own (default: each file's own rule)",
+    )  # fmt: skip
+    p.add_argument(
+        "--finish-mask", action=argparse.BooleanOptionalAction, default=None,
+        help="agents do not land while an unseen target can still be reached and left for "
+        "home, or --no-finish-mask they may (default: each file's own rule)",
     )  # fmt: skip
     p.add_argument(
         "--backend", default="grid", choices=["grid", "mujoco"],

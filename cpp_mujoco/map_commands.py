@@ -122,13 +122,20 @@ def cmd_generate(args) -> None:
 
 
 # --------------------------------------------------------------------------- evaluate --map-set
-def agent_entry(spec: str, agent, symmetric_q: bool | None) -> tuple[str, object]:
-    """(label, agent) of ``--agent SPEC``; ``--[no-]symmetric-q`` overrides the file's rule and
-    says so in the label (so in file names: the two runs never overwrite each other)."""
-    if symmetric_q is None:
-        return f"ddqn[{spec}]", agent
-    agent.symmetric_q = symmetric_q
-    return f"ddqn[{spec}, {'symmetric' if symmetric_q else 'plain'} Q]", agent
+def agent_entry(
+    spec: str, agent, symmetric_q: bool | None, finish_mask: bool | None = None
+) -> tuple[str, object]:
+    """(label, agent) of ``--agent SPEC``; ``--[no-]symmetric-q`` and ``--[no-]finish-mask``
+    override the file's rules and say so in the label (so in file names: runs with and without
+    never overwrite each other)."""
+    notes = []
+    if symmetric_q is not None:
+        agent.symmetric_q = symmetric_q
+        notes.append("symmetric Q" if symmetric_q else "plain Q")
+    if finish_mask is not None:
+        agent.finish_mask = finish_mask
+        notes.append("finish mask" if finish_mask else "no finish mask")
+    return f"ddqn[{', '.join([spec, *notes])}]", agent
 
 
 def _set_agent(spec: str, set_name: str, size: int):
@@ -185,7 +192,8 @@ def cmd_evaluate_map_set(
 
     spec = map_set_spec(args.map_set)
     agents = [
-        agent_entry(a, _set_agent(a, spec.name, spec.size), args.symmetric_q) for a in args.agent
+        agent_entry(a, _set_agent(a, spec.name, spec.size), args.symmetric_q, args.finish_mask)
+        for a in args.agent
     ]
     maps = load_map_set(spec.name, first=args.first)
     names = args.planner or ([] if agents else list(planner_names))

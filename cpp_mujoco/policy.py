@@ -142,8 +142,8 @@ def policy_name(policy: object) -> str:
 def policy_identity(policy: object) -> dict[str, Any]:
     """What results record of a trained agent beyond its name (empty for a planner): the file
     it was loaded from and its digest, its network and inputs, whether it acts with the return
-    mask and the revisit mask — two files of one name, or one file with and without a mask, never
-    read alike."""
+    mask, the revisit mask and the finish mask — two files of one name, or one file with and
+    without a mask, never read alike."""
     meta = getattr(policy, "metadata", None) or {}
     out = {k: meta[k] for k in ("source", "digest", "bundled", "architecture") if k in meta}
     kwargs = getattr(getattr(policy, "network", None), "kwargs", None)
@@ -164,6 +164,12 @@ def policy_identity(policy: object) -> dict[str, Any]:
             from cpp_mujoco.agent.revisit_mask import REVISIT_RULE
 
             out["revisit_rule"] = REVISIT_RULE
+    if hasattr(policy, "finish_mask"):
+        out["finish_mask"] = bool(policy.finish_mask)
+        if policy.finish_mask:
+            from cpp_mujoco.agent.finish_mask import FINISH_RULE
+
+            out["finish_rule"] = FINISH_RULE
     if getattr(policy, "symmetric_q", False):  # recorded only when on: results keep their keys
         from cpp_mujoco.map_symmetry import SYMMETRIC_Q_RULE
 

@@ -54,6 +54,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
     return_mask = bool((obj.get("config") or {}).get("return_mask", False))
     revisit_mask = bool((obj.get("config") or {}).get("revisit_mask", False))
     symmetric_q = bool((obj.get("config") or {}).get("symmetric_q", False))
+    finish_mask = bool((obj.get("config") or {}).get("finish_mask", False))
     wind_margin = _wind_margin((obj.get("config") or {}).get("wind_planner_sigmas"), where.path)
     return GreedyAgent(
         net,
@@ -67,6 +68,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
             "return_mask": return_mask,
             "revisit_mask": revisit_mask,
             "symmetric_q": symmetric_q,
+            "finish_mask": finish_mask,
             "source": str(where.path),
             "bundled": where.bundled,
             "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
@@ -75,6 +77,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
         wind_margin=wind_margin,
         revisit_mask=revisit_mask,
         symmetric_q=symmetric_q,
+        finish_mask=finish_mask,
     )
 
 

@@ -69,6 +69,9 @@ _GENERAL_HELP = {
     "network without it, the new inputs start at zero weight)",
     "named_symmetries": "also train on every --named-maps map's rotations and mirror images "
     "(8 for a square map), not only its own orientation",
+    "finish_mask": "as a policy (validation, the agent file), do not land while a cell showing "
+    "an unseen target can be reached and left for home (not in training; off for agents from "
+    "before the option)",
     "symmetric_q": "as a policy (validation, the agent file), take the argmax of the Q-values "
     "averaged over the map's rotations and mirror images (8 network readings a step)",
     "init_from": "start from this general agent's weights (a run's agent.pt or best.pt of the "

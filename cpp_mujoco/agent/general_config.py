@@ -85,6 +85,10 @@ class GeneralTrainConfig(TrainConfig):
     # target (:mod:`~cpp_mujoco.agent.revisit_mask`); training's exploration never uses it.
     # A config stored before the option reads False (:meth:`from_dict`): its agent flew without
     revisit_mask: bool = True
+    # as a policy, also do not land while a cell showing an unseen target can be reached and left
+    # for home (:mod:`~cpp_mujoco.agent.finish_mask`; the reward's movement penalty and discount
+    # make landing early pay); training never uses it. A config stored before reads False
+    finish_mask: bool = True
     # global-local only: the network also reads, for each action, the moves from the cell it
     # leads to until the 3×3 view holds an unseen target (:mod:`~cpp_mujoco.agent.target_input`);
     # with --init-from a network without it, the new inputs start at zero weight
@@ -172,9 +176,10 @@ class GeneralTrainConfig(TrainConfig):
 
     @classmethod
     def from_dict(cls, data: dict) -> GeneralTrainConfig:
-        """A stored config; one without ``home_input``, ``return_mask`` or ``revisit_mask`` is
-        from before them: its run had none of them."""
+        """A stored config; one without ``home_input``, ``return_mask``, ``revisit_mask`` or
+        ``finish_mask`` is from before them: its run had none of them."""
         old = {"home_input": False, "return_mask": False, "revisit_mask": False}
+        old["finish_mask"] = False
         return super().from_dict({**old, **data})
 
     @property

@@ -61,7 +61,9 @@ from cpp_mujoco.planners import make_planner
 REFERENCE_PLANNER = "safe-greedy"
 WIND_REFERENCE_PLANNER = "safe-greedy-wind"
 # a resumed general run may also change these: they schedule it, not what it learns
-GENERAL_RESUMABLE = RESUMABLE_CHANGES | {"final_budget_step", "revisit_mask", "symmetric_q"}
+GENERAL_RESUMABLE = RESUMABLE_CHANGES | {
+    "final_budget_step", "revisit_mask", "symmetric_q", "finish_mask"
+}  # fmt: skip
 # GeneralTrainConfig.architecture → (network class, what its checkpoints record)
 NETWORKS = {"global-local": (GeneralQNetwork, GENERAL), "fcn": (FCNQNetwork, FCN)}
 
@@ -207,6 +209,7 @@ class GeneralTrainer(Trainer):
             self.online, self.config.input_budget_scale, self.device, name="ddqn-general",
             return_mask=self.config.return_mask, wind_margin=self.config.wind_margin,
             revisit_mask=self.config.revisit_mask, symmetric_q=self.config.symmetric_q,
+            finish_mask=self.config.finish_mask,
         )  # fmt: skip
 
     def evaluate(self, full: bool = False) -> ValidationResult:

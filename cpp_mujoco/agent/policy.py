@@ -2,7 +2,9 @@
 an agent trained with the return mask takes the argmax over the actions that keep its way home
 paid (:func:`~cpp_mujoco.agent.home_input.safe_actions`), as it was trained to; one flown with
 the revisit mask (:mod:`~cpp_mujoco.agent.revisit_mask`) also leaves out the moves back into a
-fruitless cell it has flown through, and keeps that memory per episode (``reset``)."""
+fruitless cell it has flown through, and keeps that memory per episode (``reset``); one flown
+with the finish mask (:mod:`~cpp_mujoco.agent.finish_mask`) does not land while an unseen target
+is still within reach."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ import torch
 
 from cpp_mujoco.agent.ddqn import mask_unsafe
 from cpp_mujoco.agent.fcn_network import FCNQNetwork
+from cpp_mujoco.agent.finish_mask import finish_allowed
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
@@ -32,7 +35,9 @@ class GreedyAgent:
     among the return rule's safe actions (agents trained with it), in an observed wind with
     ``wind_margin`` (the margin of the wind planners it learned from; None: their default);
     ``revisit_mask``: nor the moves back into a cell flown through since the coverage last grew
-    that shows no unseen target (:mod:`~cpp_mujoco.agent.revisit_mask`); ``symmetric_q``: the
+    that shows no unseen target (:mod:`~cpp_mujoco.agent.revisit_mask`); ``finish_mask``: nor
+    the landing while a cell showing an unseen target can be reached and left for home
+    (:mod:`~cpp_mujoco.agent.finish_mask`); ``symmetric_q``: the
     argmax of the Q-values averaged over the map's rotations and mirror images."""
 
     def __init__(
@@ -46,12 +51,14 @@ class GreedyAgent:
         wind_margin: ReturnMargin | None = None,
         revisit_mask: bool = False,
         symmetric_q: bool = False,
+        finish_mask: bool = False,
     ):
         self.network = network.to(device).eval()
         self.return_mask = bool(return_mask)
         self.wind_margin = wind_margin
         self.revisit_mask = bool(revisit_mask)
         self.symmetric_q = bool(symmetric_q)
+        self.finish_mask = bool(finish_mask)
         self.memory = RevisitMemory()
         self.budget_scale = float(budget_scale)
         self.device = torch.device(device)
@@ -111,10 +118,14 @@ class GreedyAgent:
             allowed = safe_actions(
                 obs["map"], obs["position"], obs["budget"], wind, self.wind_margin
             )
-        if self.revisit_mask:
+        if self.revisit_mask or self.finish_mask:
             if allowed is None:
                 allowed = np.ones(tuple(q.shape), dtype=bool)
-            allowed = self.memory.allowed(obs, allowed)
+            before_revisit = allowed
+            if self.revisit_mask:
+                allowed = self.memory.allowed(obs, allowed)
+            if self.finish_mask:
+                allowed = finish_allowed(obs, allowed, wider=before_revisit)
         if allowed is not None:
             q = mask_unsafe(q, torch.from_numpy(allowed))
         actions = q.argmax(dim=1).numpy()

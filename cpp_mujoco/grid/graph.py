@@ -189,6 +189,20 @@ class MapGraph:
         """(N, H·W) int32: of the (N, H·W) bool ``unseen`` target cells, how many each cell sees."""
         return square_fov_counts(unseen, self.grid_map.shape, self.fov_side)
 
+    def returnable_goals(
+        self, cells: np.ndarray, budget: np.ndarray, coverage: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(gain, dist, goal), each (N, H·W), for N UAVs at flat ``cells`` with ``budget`` left
+        and ``coverage`` (N, H·W) bool: the unseen targets each cell shows, the fewest moves to
+        it, and whether it shows one *and* can be reached and left for home within the budget.
+        The safe greedy planner heads for these goals and lands when there are none; the
+        general agent's finish mask forbids the landing while there are some — one rule."""
+        unseen = ~coverage & self.grid_map.target.reshape(-1)
+        gain = self.new_targets_seen(unseen)
+        dist = self.distance_from(cells)
+        goal = (dist > 0) & (dist + self.home[None, :] <= budget[:, None]) & (gain > 0)
+        return gain, dist, goal
+
 
 def build_graph(grid_map: GridMap, fov_side: int = 3) -> MapGraph:
     safety = SafetyController(grid_map)

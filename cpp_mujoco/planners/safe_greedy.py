@@ -40,10 +40,7 @@ class SafeGreedyPlanner:
     def _decide(g: MapGraph, pos, budget, coverage) -> np.ndarray:
         """Each episode's action; episodes are independent, so any chunking decides the same."""
         rows = np.arange(pos.size)
-        unseen = ~coverage & g.grid_map.target.reshape(-1)
-        gain = g.new_targets_seen(unseen)  # new targets seen from each cell
-        dist = g.distance_from(pos)
-        reachable = (dist > 0) & (dist + g.home[None, :] <= budget[:, None]) & (gain > 0)
+        gain, dist, reachable = g.returnable_goals(pos, budget, coverage)
         score = np.where(reachable, gain / np.maximum(dist, 1), -1.0)
         goal = score.argmax(axis=1)
         has_goal = score[rows, goal] > 0

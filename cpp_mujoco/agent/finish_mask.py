@@ -1,0 +1,79 @@
+"""The finish mask: a greedy agent does not land while an unseen target is still within reach —
+while some cell that shows one can be reached and left for home within the remaining budget.
+
+Why: the paper's reward charges every move (the movement penalty) and discounts what comes
+later (γ = 0.95), so covering the last few scattered targets can be worth less to the agent than
+landing now; the benchmark scores coverage. Measured on 32 validation-range 16×16 maps (every 5th
+budget), the general agent fell furthest behind the safe greedy planner at the largest budgets
+(−3.5 points at 75, +1.5 at 30) and often landed with budget and reachable targets left. The
+rule is the safe greedy planner's own test for having a goal
+(:meth:`~cpp_mujoco.grid.graph.MapGraph.returnable_goals`), so the agent lands where the planner
+would land. It only ever removes the landing: an episode flown with it covers at least what the
+same episode without it covers (coverage never falls, and where the two part the unmasked one
+lands), and the return mask it is combined with still lands every calm-air episode. The distances
+are calm-air moves; in an observed wind the return rule, which prices the way home at that
+wind, still decides which actions are safe, and a row whose only allowed action is the landing
+keeps it.
+
+Like the revisit mask it is a rule of the policy, not of training (the soft-max explores, the
+DDQN target reads the Q-values); results name it (:data:`FINISH_RULE`, ``conditions.policy``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cpp_mujoco.grid.actions import LAND
+from cpp_mujoco.grid.graph import graph_from_observation
+from cpp_mujoco.grid.mdp import GridConfig
+from cpp_mujoco.planners.rollout import decode_observation
+
+# what results record of the rule (policy_identity); a changed rule gets a new name here
+FINISH_RULE = (
+    "finish-v1 (no landing while a cell showing an unseen target can be reached and left for "
+    "home within the budget in calm-air moves, the safe greedy planner's goals, unless the "
+    "landing is the only action left)"
+)
+_CHUNK_ELEMENTS = 1 << 21  # episodes × cells decided at once: bounds the (N, H·W) temporaries
+
+
+def targets_in_reach(obs: dict[str, np.ndarray], fov_side: int = GridConfig.fov_side) -> np.ndarray:
+    """(N,) bool for a batch of observations: some unseen target can still be seen and the way
+    home paid after it. A batch whose rows carry their own maps ((N, 3, H, W)) is decided map by
+    map."""
+    layers = np.asarray(obs["map"])
+    pos, budget, coverage = decode_observation(obs)
+    out = np.zeros(pos.size, dtype=bool)
+    if layers.ndim == 4:
+        flat = layers.reshape(layers.shape[0], -1)
+        _, first, which = np.unique(flat, axis=0, return_index=True, return_inverse=True)
+        groups = [(layers[f], np.flatnonzero(which.reshape(-1) == k)) for k, f in enumerate(first)]
+    else:
+        groups = [(layers, np.arange(pos.size))]
+    for grid, rows in groups:
+        g = graph_from_observation({"map": grid}, fov_side)
+        chunk = max(1, _CHUNK_ELEMENTS // g.num_cells)
+        for lo in range(0, rows.size, chunk):
+            r = rows[lo : lo + chunk]
+            out[r] = g.returnable_goals(pos[r], budget[r], coverage[r])[2].any(axis=1)
+    return out
+
+
+def finish_allowed(
+    obs: dict[str, np.ndarray], allowed: np.ndarray, wider: np.ndarray | None = None
+) -> np.ndarray:
+    """``allowed`` (N, 5 bool) without the landing in the rows that still have a target in
+    reach. A row so left with no action takes the moves of ``wider`` (the actions allowed before
+    the revisit mask: flying back over a cell costs one unit, landing ends the coverage), and
+    one left with none of those keeps ``allowed``."""
+    allowed = np.asarray(allowed, dtype=bool)
+    wider = allowed if wider is None else np.asarray(wider, dtype=bool)
+    in_reach = targets_in_reach(obs)
+    kept = allowed.copy()
+    kept[in_reach, LAND] = False
+    empty = ~kept.any(axis=1)
+    kept[empty] = wider[empty]
+    kept[empty & in_reach, LAND] = False
+    empty = ~kept.any(axis=1)
+    kept[empty] = allowed[empty]
+    return kept
