@@ -13,22 +13,13 @@ from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.map_commands import agent_entry
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
+from tests.hand_observations import hand_observation
 
 ALL = np.ones((1, 5), dtype=bool)
 
 
-def _obs(h=5, w=5, cell=(2, 2), budget=30, targets=(), nfz=(), covered=(), landing=((2, 2),)):
-    layers = np.zeros((3, h, w), dtype=np.float32)  # landing, target, nfz
-    for channel, cells in enumerate((landing, targets, nfz)):
-        for r, c in cells:
-            layers[channel, r, c] = 1
-    coverage = np.zeros((1, h, w), dtype=np.int8)
-    for r, c in covered:
-        coverage[0, r, c] = 1
-    position = np.zeros((1, h, w), dtype=np.int8)
-    position[0, cell[0], cell[1]] = 1
-    budget = np.array([[budget]], dtype=np.float32)
-    return {"map": layers, "coverage": coverage, "position": position, "budget": budget}
+def _obs(landing=((2, 2),), **kwargs):
+    return hand_observation(landing=landing, **kwargs)
 
 
 def test_a_target_is_in_reach_only_if_the_way_there_and_home_is_paid():

@@ -14,23 +14,12 @@ from cpp_mujoco.grid.env import GridEnv
 from cpp_mujoco.map_sets import load_map_set
 from cpp_mujoco.size_classes import size_config
 from scripts.agent_loops import longest_cycle_run
+from tests.hand_observations import hand_observation
 
 ALL = np.ones((1, 5), dtype=bool)
 
 
-def _obs(h=5, w=5, cell=(2, 2), budget=30, targets=(), nfz=(), covered=()):
-    layers = np.zeros((3, h, w), dtype=np.float32)  # landing, target, nfz
-    for r, c in targets:
-        layers[1, r, c] = 1
-    for r, c in nfz:
-        layers[2, r, c] = 1
-    coverage = np.zeros((1, h, w), dtype=np.int8)
-    for r, c in covered:
-        coverage[0, r, c] = 1
-    position = np.zeros((1, h, w), dtype=np.int8)
-    position[0, cell[0], cell[1]] = 1
-    budget = np.array([[budget]], dtype=np.float32)
-    return {"map": layers, "coverage": coverage, "position": position, "budget": budget}
+_obs = hand_observation
 
 
 def test_a_move_back_into_a_fruitless_cell_is_dropped_cell_by_cell():

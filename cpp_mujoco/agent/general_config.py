@@ -178,8 +178,7 @@ class GeneralTrainConfig(TrainConfig):
     def from_dict(cls, data: dict) -> GeneralTrainConfig:
         """A stored config; one without ``home_input``, ``return_mask``, ``revisit_mask`` or
         ``finish_mask`` is from before them: its run had none of them."""
-        old = {"home_input": False, "return_mask": False, "revisit_mask": False}
-        old["finish_mask"] = False
+        old = dict.fromkeys(("home_input", "return_mask", "revisit_mask", "finish_mask"), False)
         return super().from_dict({**old, **data})
 
     @property
