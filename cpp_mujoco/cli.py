@@ -19,6 +19,7 @@ import sys
 from cpp_mujoco import __version__
 from cpp_mujoco.benchmark import add_parser as add_benchmark
 from cpp_mujoco.commands import add_demo, add_evaluate, add_fly, add_maps
+from cpp_mujoco.optimum_commands import add_optimum
 
 
 class _Parser(argparse.ArgumentParser):
@@ -60,6 +61,7 @@ def build_parser(train_options: bool = True) -> argparse.ArgumentParser:
     add_maps(sub)
     add_evaluate(sub)
     add_fly(sub)
+    add_optimum(sub)
     add_train(sub, options=train_options)
     add_demo(sub)
     add_benchmark(sub)

@@ -2,6 +2,7 @@
 
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.planners.beam_search import BeamSearchPlanner
+from cpp_mujoco.planners.optimal import OptimalPlanner
 from cpp_mujoco.planners.random_planner import RandomPlanner
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
 from cpp_mujoco.planners.safe_greedy_wind import WindSafeGreedyPlanner
@@ -11,6 +12,8 @@ PLANNERS = {
     "random": RandomPlanner,
     "safe-greedy": SafeGreedyPlanner,
     "beam-search": BeamSearchPlanner,
+    # the best mission per episode, solved (OR-Tools CP-SAT); options: make_planner's optimal=
+    "optimal": OptimalPlanner,
     # for wind (the grid wind option, MuJoCo with wind): priced from the observed wind
     "safe-greedy-wind": WindSafeGreedyPlanner,
     "beam-search-wind": WindDemonstrator,
@@ -18,16 +21,21 @@ PLANNERS = {
 WIND_PLANNERS = ("safe-greedy-wind", "beam-search-wind")  # the ones that keep a ReturnMargin
 
 
-def make_planner(name: str, wind_margin: ReturnMargin | None = None):
-    """A reference planner by name (``random``, ``safe-greedy``, ``beam-search``,
+def make_planner(
+    name: str, wind_margin: ReturnMargin | None = None, optimal: dict | None = None
+):
+    """A reference planner by name (``random``, ``safe-greedy``, ``beam-search``, ``optimal``,
     ``safe-greedy-wind``, ``beam-search-wind``); ``wind_margin`` is the margin the two wind
-    planners keep (None: their default), the others price no wind and take none."""
+    planners keep (None: their default), the others price no wind and take none; ``optimal``:
+    the exact planner's keyword arguments (``options``, ``cache_folder``, ``jobs``)."""
     try:
         kind = PLANNERS[name]
     except KeyError:
         raise ValueError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}") from None
     if wind_margin is not None and name in WIND_PLANNERS:
         return kind(margin=wind_margin)
+    if name == "optimal":
+        return kind(**(optimal or {}))
     return kind()
 
 
@@ -35,6 +43,7 @@ __all__ = [
     "PLANNERS",
     "WIND_PLANNERS",
     "BeamSearchPlanner",
+    "OptimalPlanner",
     "RandomPlanner",
     "SafeGreedyPlanner",
     "WindDemonstrator",
