@@ -14,7 +14,9 @@ from pathlib import Path
 # the reference planners (cpp_mujoco.planners.PLANNERS, named here for the parser; a test keeps
 # them equal); evaluate flies the first three when no policy is named — the wind planners price
 # moves with the observed wind and are asked for by name
-PLANNER_NAMES = ("random", "safe-greedy", "beam-search", "safe-greedy-wind", "beam-search-wind")
+PLANNER_NAMES = (
+    "random", "safe-greedy", "beam-search", "safe-greedy-wind", "beam-search-wind", "optimal",
+)  # fmt: skip
 DEFAULT_PLANNERS = PLANNER_NAMES[:3]
 # Dryden turbulence levels (MIL-F-8785C), the same as cpp_mujoco.physics.turbulence.LEVELS; named
 # here so that building the parser imports no numerical module (a test keeps them equal)
@@ -149,6 +151,7 @@ def _ray_runtime(args):
 def cmd_evaluate(args) -> None:
     from cpp_mujoco.evaluate import protocol_budgets
     from cpp_mujoco.maps import bundled_maps, load_map
+    from cpp_mujoco.optimum_commands import optimal_options
     from cpp_mujoco.planners import make_planner
     from cpp_mujoco.review.results import run_evaluation
 
@@ -169,7 +172,7 @@ def cmd_evaluate(args) -> None:
         _check_agent(spec)
     if not args.planner and not args.agent:
         args.planner = list(DEFAULT_PLANNERS)
-    policies = [(name, make_planner(name)) for name in args.planner]
+    policies = [(name, make_planner(name, optimal=optimal_options(args))) for name in args.planner]
     if args.agent:
         from cpp_mujoco.agent import load_agent
         from cpp_mujoco.map_commands import agent_entry
@@ -180,6 +183,7 @@ def cmd_evaluate(args) -> None:
     out = out_dir(args.out)
     extra: dict = {"progress": progress_wanted(args)}
     extra["budgets"] = protocol_budgets(step=args.budget_step)
+    extra["optimum"] = args.optimum
     if args.backend == "mujoco":
         extra.update(workers=args.workers, env_kwargs=weather)
         extra["engine"] = "ray" if args.ray else "local"
@@ -351,6 +355,9 @@ def add_evaluate(sub) -> None:
     )  # fmt: skip
     p.add_argument("--ray-address", help="with --ray: the Ray cluster to fly on (HOST:PORT)")
     add_wind_options(p)
+    from cpp_mujoco.optimum_commands import add_solver_options
+
+    add_solver_options(p)
     p.add_argument(
         "--grid-wind", type=float, default=None, metavar="SPEED",
         help="grid, with --map-set: the grid's wind option, SPEED m/s in every episode from one "

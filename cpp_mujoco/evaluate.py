@@ -19,12 +19,14 @@ from typing import Any
 import numpy as np
 
 from cpp_mujoco.episode import OnBatchStep, run_batch
+from cpp_mujoco.grid.graph import coverage_upper_bound, coverage_upper_bounds
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.protocol import ENGINES  # what carries MuJoCo episodes
 from cpp_mujoco.policy import Policy, as_policy, policy_identity
 from cpp_mujoco.policy import policy_name as policy_label
+from cpp_mujoco.protocol_optimum import optimum_of, optimum_summary
 
 PAPER_LANDING_RATIO = {"A": 0.9937, "B": 0.9978, "C": 0.9826}
 BACKENDS = ("grid", "mujoco")
@@ -66,6 +68,7 @@ class EvaluationResult:
     trajectories: np.ndarray  # (E, T+1) flat cells visited, -1 after the end
     upper_bound: dict[int, float] = field(default_factory=dict)  # budget → coverage bound
     physics: dict[str, np.ndarray] = field(default_factory=dict)  # per-episode physical figures
+    optimum: dict[str, np.ndarray] = field(default_factory=dict)  # per-episode best missions
     conditions: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -87,15 +90,17 @@ class EvaluationResult:
         rows = []
         for b in np.unique(self.budgets):
             sel = self.budgets == b
-            rows.append(
-                {
-                    "budget": int(b),
-                    "episodes": int(sel.sum()),
-                    "landing_ratio": float(self.landed[sel].mean()),
-                    "coverage_ratio": float(self.coverage[sel].mean()),
-                    "upper_bound": float(self.upper_bound.get(int(b), float("nan"))),
-                }
-            )
+            row = {
+                "budget": int(b),
+                "episodes": int(sel.sum()),
+                "landing_ratio": float(self.landed[sel].mean()),
+                "coverage_ratio": float(self.coverage[sel].mean()),
+                "upper_bound": float(self.upper_bound.get(int(b), float("nan"))),
+            }
+            if self.optimum and (self.optimum["status"][sel] != "").all():  # all known
+                row["optimum"] = float(self.optimum["coverage"][sel].mean())
+                row["optimum_bound"] = float(self.optimum["bound"][sel].mean())
+            rows.append(row)
         return rows
 
     def summary(self) -> dict[str, object]:
@@ -120,6 +125,7 @@ class EvaluationResult:
             "mean_return": float(self.returns.mean()),
             "mean_steps": float(self.steps.mean()),
             **physics,
+            **({"optimum": optimum_summary(self.optimum, self.coverage)} if self.optimum else {}),
             "conditions": self.conditions,
         }
 
@@ -127,35 +133,6 @@ class EvaluationResult:
         """Write summary and per-budget table atomically."""
         data = {**self.summary(), "per_budget": self.per_budget}
         atomic_write_text(path, json.dumps(data, indent=2, default=json_default))
-
-
-def coverage_upper_bound(grid_map: GridMap, budget: int, fov_side: int = 3) -> float:
-    """An upper bound on the coverage ratio any policy reaches with ``budget`` actions."""
-    return coverage_upper_bounds(grid_map, [budget], fov_side)[budget]
-
-
-def coverage_upper_bounds(
-    grid_map: GridMap, budgets: Iterable[int], fov_side: int = 3
-) -> dict[int, float]:
-    """Budget → an upper bound on the coverage ratio any policy reaches with that many actions.
-
-    min(targets visible from cells it can visit and still land, cells a path can see) / targets.
-    A visited cell c needs ``2·d(c) + 1 <= budget`` (out from a landing cell, back, land), with
-    d the flight distance to the landing zone; the path sees at most ``fov_side²`` cells at its
-    first step and ``fov_side`` new cells per further move (one action is the landing).
-    """
-    from cpp_mujoco.grid.graph import build_graph
-
-    g = build_graph(grid_map, fov_side)  # one way-home table for every budget
-    bounds = {}
-    for budget in {int(b) for b in budgets}:
-        visitable = 2 * (g.home - 1) + 1 <= budget
-        seen = np.zeros(g.num_cells, dtype=bool)
-        seen[g.fov_cells[visitable][g.fov_targets[visitable]]] = True
-        visible = int(seen.sum())
-        seeable = fov_side**2 + fov_side * max(budget - 2, 0)
-        bounds[budget] = float(min(visible, seeable) / grid_map.target.sum())
-    return bounds
 
 
 def protocol_budgets(config: GridConfig | None = None, step: int = 1) -> list[int]:
@@ -189,6 +166,7 @@ def evaluate(
     chunk_cells: int = CHUNK_CELLS,
     engine: str = "local",
     ray_address: str | None = None,
+    optimum: str | os.PathLike | None = None,
 ) -> EvaluationResult:
     """Run the full protocol for ``policy`` on ``map``; budgets default to the config's range.
 
@@ -221,8 +199,6 @@ def evaluate(
     name = policy_name or policy_label(policy)
     bounds = coverage_upper_bounds(grid_map, budget_per_episode, config.fov_side)
     conditions = _conditions(backend, budget_per_episode, config, physics_kwargs)
-    if identity := policy_identity(policy):
-        conditions["policy"] = identity
     if backend == "mujoco":
         outcome = _run_physics(
             policy, grid_map, starts, budget_per_episode, config, physics_kwargs, workers,
@@ -239,6 +215,11 @@ def evaluate(
         outcome = _run_grid(
             policy, grid_map, starts, budget_per_episode, config, per_chunk, on_step, progress
         )
+    if identity := policy_identity(policy):  # after the run: a planner records what it solved
+        conditions["policy"] = identity
+    best = {} if config.wind is not None else optimum_of(
+        grid_map, starts, budget_per_episode, config.fov_side, optimum
+    )  # fmt: skip
     return EvaluationResult(
         grid_map=grid_map,
         policy_name=name,
@@ -247,6 +228,7 @@ def evaluate(
         budgets=budget_per_episode,
         upper_bound=bounds,
         conditions=conditions,
+        optimum=best,
         **outcome,
     )
 

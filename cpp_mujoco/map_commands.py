@@ -197,7 +197,9 @@ def cmd_evaluate_map_set(
     ]
     maps = load_map_set(spec.name, first=args.first)
     names = args.planner or ([] if agents else list(planner_names))
-    policies = [(name, make_planner(name)) for name in names] + agents
+    from cpp_mujoco.optimum_commands import optimal_options
+
+    policies = [(n, make_planner(n, optimal=optimal_options(args))) for n in names] + agents
     out = out_dir(args.out)
     from cpp_mujoco.map_set_eval import evaluate_map_set
     from cpp_mujoco.review.map_set_figures import load_map_set_result, write_map_set_figures

@@ -146,6 +146,8 @@ def policy_identity(policy: object) -> dict[str, Any]:
     without a mask, never read alike."""
     meta = getattr(policy, "metadata", None) or {}
     out = {k: meta[k] for k in ("source", "digest", "bundled", "architecture") if k in meta}
+    if callable(own := getattr(policy, "identity", None)):  # a planner's solver and limits
+        out.update(own())
     kwargs = getattr(getattr(policy, "network", None), "kwargs", None)
     if isinstance(kwargs, dict):  # its inputs too (moves home, moves to new targets, wind)
         out["network"] = dict(kwargs)

@@ -14,3 +14,9 @@ def bundled_dir(kind: str) -> Path:
         if candidate.is_dir():
             return candidate
     raise FileNotFoundError(f"bundled folder {kind!r} not found next to {_PACKAGE}")
+
+
+def repository_dir() -> Path | None:
+    """The checkout this package runs from (its ``pyproject.toml`` beside it), else None."""
+    root = _PACKAGE.parent
+    return root if (root / "pyproject.toml").is_file() else None

@@ -11,6 +11,7 @@ gigabytes.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
@@ -237,3 +238,30 @@ def graph_from_observation(obs: dict[str, np.ndarray], fov_side: int = 3) -> Map
         layers = layers[0]
     layers = np.ascontiguousarray(layers, dtype=np.int8)
     return _graph_from_bytes(layers.tobytes(), layers.shape, fov_side)
+
+
+def coverage_upper_bound(grid_map: GridMap, budget: int, fov_side: int = 3) -> float:
+    """An upper bound on the coverage ratio any policy reaches with ``budget`` actions."""
+    return coverage_upper_bounds(grid_map, [budget], fov_side)[budget]
+
+
+def coverage_upper_bounds(
+    grid_map: GridMap, budgets: Iterable[int], fov_side: int = 3
+) -> dict[int, float]:
+    """Budget → an upper bound on the coverage ratio any policy reaches with that many actions.
+
+    min(targets visible from cells it can visit and still land, cells a path can see) / targets.
+    A visited cell c needs ``2·d(c) + 1 <= budget`` (out from a landing cell, back, land), with
+    d the flight distance to the landing zone; the path sees at most ``fov_side²`` cells at its
+    first step and ``fov_side`` new cells per further move (one action is the landing).
+    """
+    g = build_graph(grid_map, fov_side)  # one way-home table for every budget
+    bounds = {}
+    for budget in {int(b) for b in budgets}:
+        visitable = 2 * (g.home - 1) + 1 <= budget
+        seen = np.zeros(g.num_cells, dtype=bool)
+        seen[g.fov_cells[visitable][g.fov_targets[visitable]]] = True
+        visible = int(seen.sum())
+        seeable = fov_side**2 + fov_side * max(budget - 2, 0)
+        bounds[budget] = float(min(visible, seeable) / grid_map.target.sum())
+    return bounds

@@ -21,9 +21,7 @@ PLANNERS = {
 WIND_PLANNERS = ("safe-greedy-wind", "beam-search-wind")  # the ones that keep a ReturnMargin
 
 
-def make_planner(
-    name: str, wind_margin: ReturnMargin | None = None, optimal: dict | None = None
-):
+def make_planner(name: str, wind_margin: ReturnMargin | None = None, optimal: dict | None = None):
     """A reference planner by name (``random``, ``safe-greedy``, ``beam-search``, ``optimal``,
     ``safe-greedy-wind``, ``beam-search-wind``); ``wind_margin`` is the margin the two wind
     planners keep (None: their default), the others price no wind and take none; ``optimal``:

@@ -87,8 +87,10 @@ def solve_episodes(
             old = cache.get(tuple(starts[i]), int(budgets[i]))
             if old is not None and old["actions"]:
                 hints[k] = np.asarray(old["actions"], dtype=np.int64)
-        work = [(int(c), int(budgets[i]), h, options) for c, i, h in zip(cells, todo, hints,
-                                                                          strict=True)]
+        work = [
+            (int(c), int(budgets[i]), h, options)
+            for c, i, h in zip(cells, todo, hints, strict=True)
+        ]
         solver = solver_version()
         saved = time.monotonic()
         bar = tqdm(total=len(work), desc=f"optimum {grid_map.label}", disable=not progress)

@@ -279,8 +279,12 @@ class _Model:
         if len(path) - 1 + hovered > self.moves or (hovered and self.hover is None):
             return
         path += [path[-1]] * (self.moves + 1 - len(path))
-        index = {k: i for i, k in enumerate(zip(self.at.tolist(), self.tail.tolist(),
-                                                 self.head.tolist(), strict=True))}
+        index = {
+            k: i
+            for i, k in enumerate(
+                zip(self.at.tolist(), self.tail.tolist(), self.head.tolist(), strict=True)
+            )
+        }
         chosen = {index.get((t, path[t], path[t + 1])) for t in range(self.moves)}
         if None in chosen:
             return
@@ -301,6 +305,9 @@ class _Model:
         flown = chosen[~self.rest[chosen]]
         nxt = self.g.safety.next_cell[self.tail[flown], :LAND]
         moves = (nxt == self.head[flown][:, None]).argmax(axis=1)
-        hover = [self.hover_action] if self.hover is not None and solver.boolean_value(
-            self.hover) else []
+        hover = (
+            [self.hover_action]
+            if self.hover is not None and solver.boolean_value(self.hover)
+            else []
+        )
         return np.array([*hover, *moves.tolist(), LAND], dtype=np.int64)

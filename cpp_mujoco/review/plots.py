@@ -172,6 +172,16 @@ def coverage_plot(results: Sequence[EvaluationResult]) -> Figure:
         lw=1,
         label="upper bound",
     )
+    solved = [r for r in table if "optimum" in r]
+    if solved:
+        o = results[0].summary()["optimum"]
+        proven = o["statuses"].get("optimal", 0)
+        budgets = [r["budget"] for r in solved]
+        ax.plot(budgets, [r["optimum"] for r in solved], "k-", lw=1.5,
+                label=f"optimal ({proven}/{o['episodes_known']} proven)")  # fmt: skip
+        if proven < o["episodes_known"]:
+            ax.plot(budgets, [r["optimum_bound"] for r in solved], "k:", lw=1,
+                    label="proven bound")  # fmt: skip
     ax.set_xlabel(BUDGET_LABEL)
     ax.set_ylabel(COVERAGE_LABEL)
     ax.set_ylim(0, 1.05)

@@ -27,7 +27,10 @@ from cpp_mujoco.io import atomic_write_text, json_plain
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.review.tables import format_table
 
-PROTOCOL_COLUMNS = ["map", "policy", "episodes", "landing", "coverage", "paper landing", "seconds"]
+PROTOCOL_COLUMNS = [
+    "map", "policy", "episodes", "landing", "coverage", "optimal", "gap to optimal",
+    "paper landing", "seconds",
+]  # fmt: skip
 DEMO_GRID_COLUMNS = ["map", "policy", "landing", "coverage", "paper landing"]
 TRANSFER_COLUMNS = [
     "map", "policy", "episodes", "grid landing", "mujoco landing", "grid coverage",
@@ -130,6 +133,20 @@ def _same_episodes(*results) -> None:
             raise ValueError(f"results over different budgets compared on map {first.map_name!r}")
 
 
+def optimum_cells(result) -> dict[str, str]:
+    """The best missions' coverage and the policy's gap to them over the same episodes; where
+    some were not proven, the bound too, and where the cache misses episodes, how many it has."""
+    if not result.optimum:
+        return {"optimal": "-", "gap to optimal": "-"}
+    o = result.summary()["optimum"]
+    best = _pct(o["coverage_ratio"])
+    if o["statuses"].get("optimal", 0) < o["episodes_known"]:
+        best += f" (bound {_pct(o['bound_ratio'])})"
+    if o["episodes_known"] < result.landed.size:
+        best += f" [{o['episodes_known']} ep.]"
+    return {"optimal": best, "gap to optimal": f"{o['gap_to_optimal'] * 100:.2f} pt"}
+
+
 def protocol_row(result, seconds: float | None = None) -> dict:
     """One policy's protocol on one map (either backend); ``seconds``: its wall time."""
     paper = paper_landing(result.grid_map)
@@ -137,6 +154,7 @@ def protocol_row(result, seconds: float | None = None) -> dict:
         "episodes": int(result.landed.size),
         "landing": _pct(result.landing_ratio),
         "coverage": _pct(result.coverage_ratio),
+        **optimum_cells(result),
         "paper landing": _pct(paper) if paper else "-",
     }
     if seconds is not None:

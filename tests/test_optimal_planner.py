@@ -1,0 +1,165 @@
+"""The exact planner: its model against every action sequence on small maps, its missions flown
+through the MDP, its guarantees against beam search, and its cache."""
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+
+from cpp_mujoco.cli import main
+from cpp_mujoco.evaluate import evaluate, protocol_episodes
+from cpp_mujoco.grid.graph import build_graph
+from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.grid.wind import GridWind
+from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.planners import make_planner
+from cpp_mujoco.planners.optimal import beam_missions, solve_episodes
+from cpp_mujoco.planners.optimal_model import SolverOptions, fly, solve_episode
+from cpp_mujoco.planners.optimum_cache import CacheError, OptimumCache
+from cpp_mujoco.protocol_optimum import default_folder
+
+# 0 open, L landing, T target, N no-fly, Y target + no-fly (seen only from beside)
+SMALL = [
+    "L L 0 T T",
+    "L N N Y T",
+    "0 0 T N 0",
+    "T N 0 0 T",
+    "T T 0 Y L",
+]
+
+
+def small_map(rows=SMALL, name="small") -> GridMap:
+    cells = np.array([r.split() for r in rows])
+    return GridMap(
+        landing=cells == "L",
+        target=np.isin(cells, ["T", "Y"]),
+        nfz=np.isin(cells, ["N", "Y"]),
+        name=name,
+    )
+
+
+def best_by_every_sequence(grid_map: GridMap, start, budget: int) -> int:
+    """Target cells seen by the best landed episode over all 5^budget action sequences."""
+    sequences = np.array(list(itertools.product(range(5), repeat=budget)), dtype=np.int64)
+    mdp = GridMDP(grid_map, len(sequences))
+    mdp.reset(np.random.default_rng(0), start=start, budget=budget)
+    for t in range(budget):
+        mdp.step(sequences[:, t])
+    return int(mdp.seen_targets[mdp.landed].max())
+
+
+@pytest.mark.parametrize("budget", [1, 2, 3, 5, 7])
+def test_the_model_finds_what_every_action_sequence_finds(budget):
+    grid_map = small_map()
+    g = build_graph(grid_map)
+    for row, col in np.argwhere(grid_map.landing):
+        mission = solve_episode(g, int(row * 5 + col), budget)
+        assert mission.status == "optimal"
+        assert mission.seen == mission.bound == best_by_every_sequence(grid_map, (row, col), budget)
+        seen, landed = fly(g, int(row * 5 + col), mission.actions, np.zeros(25, bool))
+        assert landed and seen == mission.seen and mission.actions.size <= budget
+
+
+def test_the_start_view_needs_a_hover_a_return_or_a_landing():
+    # a start against the north edge with targets round it: a hover (the rejected move north),
+    # a return or landing at once shows them; in the open, only a return or landing at once
+    for rows, start in ((["T L T 0 L", "T T T 0 0"], (0, 1)),
+                        (["T L 0 0 0 L", "T 0 0 0 T T"], (0, 1)),  # 6: only a hover sees 4
+                        (["T T T 0 0", "T L T 0 L", "T T T 0 0"], (1, 1))):  # fmt: skip
+        grid_map = small_map(rows, "ring")
+        g = build_graph(grid_map)
+        cell = start[0] * grid_map.shape[1] + start[1]
+        for budget in (1, 2, 3, 4, 5, 6):
+            mission = solve_episode(g, cell, budget)
+            assert mission.seen == best_by_every_sequence(grid_map, start, budget)
+
+
+def test_the_committed_missions_fly_and_beat_beam_search():
+    # map C's whole protocol, from the committed cache: read and flown, nothing solved
+    grid_map = load_map("C")
+    folder = default_folder()
+    cache = OptimumCache(folder, grid_map)
+    planner = make_planner("optimal", optimal={"cache_folder": folder})
+    result = evaluate(planner, grid_map)
+    beam = evaluate(make_planner("beam-search"), grid_map)
+    assert result.landing_ratio == 1.0
+    assert planner.statuses == {"optimal": result.landed.size}
+    targets = grid_map.target.sum()
+    for i, (start, budget) in enumerate(zip(result.starts, result.budgets, strict=True)):
+        entry = cache.get(tuple(start), int(budget))
+        assert entry["status"] == "optimal" and entry["seen"] == entry["bound"]
+        assert result.coverage[i] * targets == pytest.approx(entry["seen"])  # the env's own count
+    assert (result.coverage >= beam.coverage - 1e-12).all()
+    assert result.conditions["policy"]["solver"].startswith("OR-Tools CP-SAT")
+
+
+def test_an_episode_without_a_way_home_is_infeasible_not_a_crash():
+    grid_map = small_map()
+    g = build_graph(grid_map)
+    far = 4 * 5 + 0  # bottom-left, several moves from the nearest landing cell
+    mission = solve_episode(g, far, 2)
+    assert mission.status == "infeasible" and mission.actions.size == 0
+    with pytest.raises(ValueError, match="time limit"):
+        SolverOptions(time_limit_s=float("nan"))
+
+
+def test_a_mid_episode_replan_counts_what_was_seen():
+    grid_map = small_map()
+    g = build_graph(grid_map)
+    seen = np.zeros(25, bool)
+    seen[[3, 4, 8, 9]] = True  # the top-right targets, already seen
+    mission = solve_episode(g, 1, 7, seen)
+    assert mission.status == "optimal"
+    assert fly(g, 1, mission.actions, seen) == (mission.seen, True)
+
+
+def test_the_cache_is_reused_and_resumed(tmp_path):
+    grid_map = load_map("C")
+    starts, budgets = protocol_episodes(grid_map, [75])
+    cache = OptimumCache(tmp_path, grid_map)
+    first = solve_episodes(grid_map, starts[:5], budgets[:5], SolverOptions(5), cache)
+    saved = json.loads(cache.path.read_text())
+    assert len(saved["entries"]) == 5 and saved["map_digest"] == grid_map.digest
+    # a second run solves only what is new, and keeps the known entries as they were
+    again = OptimumCache(tmp_path, grid_map)
+    both = solve_episodes(grid_map, starts, budgets, SolverOptions(5), again)
+    assert both[:5] == first
+    assert len(json.loads(cache.path.read_text())["entries"]) == len(starts)
+
+
+def test_a_foreign_or_broken_cache_is_refused_and_kept(tmp_path):
+    grid_map = load_map("C")
+    path = tmp_path / f"{grid_map.digest}.json"
+    for text, why in (
+        ("{not json", "cannot be read"),
+        (json.dumps({"format": "other"}), "not a cpp_mujoco.optimum/1 file"),
+        (json.dumps({"format": "cpp_mujoco.optimum/1", "map_digest": "0" * 12}), "belongs to"),
+    ):
+        path.write_text(text)
+        with pytest.raises(CacheError, match=why):
+            OptimumCache(tmp_path, grid_map)
+        assert main(["optimum", "--map", "C", "--first", "1", "--optimum", str(tmp_path)]) == 2
+        assert path.read_text() == text
+
+
+def test_results_carry_the_optimum_beside_the_policy():
+    result = evaluate(make_planner("safe-greedy"), "C", budgets=[25, 26, 75])
+    summary = result.summary()["optimum"]
+    assert summary["episodes_known"] == result.landed.size
+    assert summary["statuses"] == {"optimal": result.landed.size}
+    assert summary["gap_to_optimal"] >= 0
+    assert all(row["optimum"] >= row["coverage_ratio"] for row in result.per_budget)
+    assert np.all(result.optimum["coverage"] >= result.coverage - 1e-12)
+    # a result in the grid's wind option carries none: its moves cost what the wind makes them
+    windy = GridConfig(wind=GridWind())
+    assert evaluate(make_planner("safe-greedy"), "C", budgets=[25], config=windy).optimum == {}
+
+
+def test_beam_missions_land_within_their_budget():
+    grid_map = load_map("B")
+    g = build_graph(grid_map)
+    cells = np.flatnonzero(grid_map.landing.reshape(-1))[:3]
+    for cell, actions in zip(cells, beam_missions(grid_map, cells, np.full(3, 30)), strict=True):
+        _, landed = fly(g, int(cell), actions, np.zeros(g.num_cells, bool))
+        assert landed and actions.size <= 30
