@@ -12,11 +12,11 @@ PLANNERS = {
     "random": RandomPlanner,
     "safe-greedy": SafeGreedyPlanner,
     "beam-search": BeamSearchPlanner,
-    # the best mission per episode, solved (OR-Tools CP-SAT); options: make_planner's optimal=
-    "optimal": OptimalPlanner,
     # for wind (the grid wind option, MuJoCo with wind): priced from the observed wind
     "safe-greedy-wind": WindSafeGreedyPlanner,
     "beam-search-wind": WindDemonstrator,
+    # the best mission per episode, solved (OR-Tools CP-SAT); options: make_planner's optimal=
+    "optimal": OptimalPlanner,
 }
 WIND_PLANNERS = ("safe-greedy-wind", "beam-search-wind")  # the ones that keep a ReturnMargin
 
