@@ -3,6 +3,7 @@ through the MDP, its guarantees against beam search, and its cache."""
 
 import itertools
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -163,3 +164,14 @@ def test_beam_missions_land_within_their_budget():
     for cell, actions in zip(cells, beam_missions(grid_map, cells, np.full(3, 30)), strict=True):
         _, landed = fly(g, int(cell), actions, np.zeros(g.num_cells, bool))
         assert landed and actions.size <= 30
+
+
+def test_the_docs_table_is_the_result_files():
+    import runpy
+
+    script = runpy.run_path(str(Path(__file__).parent.parent / "scripts" / "optimum_report.py"))
+    assert script["main"](["--check"]) == 0
+    data = json.loads(script["RESULT"].read_text())
+    for row in data["results"]:  # each committed result names its map, policy and optimum
+        assert row["map_digest"] == load_map(row["map"]).digest
+        assert row["optimum"]["episodes_known"] == row["episodes"]

@@ -1,0 +1,121 @@
+"""The policies against the optimum on maps A, B and C: the table of docs/optimum.md.
+
+    python scripts/optimum_report.py --evaluate   # fly the policies, write results/optimum_abc.json
+    python scripts/optimum_report.py              # write the table from that file into the doc
+    python scripts/optimum_report.py --check      # exit 1 if the doc's table is not the file's
+
+The optimum comes from the committed cache (results/optimum/, filled by ``cpp-mujoco optimum``);
+each policy flies the paper's full protocol on the grid, and its gap to the best missions is
+taken over the same episodes. The doc's table is written from the result file alone, so the
+numbers in it are the file's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULT = ROOT / "results" / "optimum_abc.json"
+DOC = ROOT / "docs" / "optimum.md"
+BEGIN, END = "<!-- optimum-table:begin -->", "<!-- optimum-table:end -->"
+MAPS = ("A", "B", "C")
+
+
+def policies(name: str) -> list[tuple[str, object]]:
+    from cpp_mujoco.agent import load_agent
+    from cpp_mujoco.planners import make_planner
+
+    return [
+        ("safe-greedy", make_planner("safe-greedy")),
+        ("beam-search", make_planner("beam-search")),
+        (f"ddqn-{name}", load_agent(name)),
+        ("general", load_agent("general")),
+    ]
+
+
+def evaluate_all() -> dict:
+    from cpp_mujoco.evaluate import evaluate
+    from cpp_mujoco.io import atomic_write_text, json_default
+    from cpp_mujoco.maps import load_map
+
+    rows = []
+    for name in MAPS:
+        grid_map = load_map(name)
+        for label, policy in policies(name):
+            result = evaluate(policy, grid_map, policy_name=label)
+            if not result.optimum:
+                raise SystemExit(f"optimum_report.py: no optimum cached for map {name}")
+            rows.append(result.summary())
+    data = {"results": rows}
+    atomic_write_text(RESULT, json.dumps(data, indent=1, default=json_default))
+    return data
+
+
+def render(data: dict) -> str:
+    """The Markdown table: per map the best missions (proven share, bound), per policy its
+    coverage and its gap to the best missions."""
+    by_map: dict[str, list[dict]] = {}
+    for row in data["results"]:
+        by_map.setdefault(row["map"], []).append(row)
+    names = list(dict.fromkeys(r["policy"].split("-")[0] if r["policy"].startswith("ddqn")
+                               else r["policy"] for r in data["results"]))  # fmt: skip
+    head = ["map", "episodes", "proven optimal", "optimal", "bound"]
+    head += [f"{n} (gap)" for n in names]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for name, rows in by_map.items():
+        o = rows[0]["optimum"]
+        proven = o["statuses"].get("optimal", 0)
+        cells = [
+            name, str(rows[0]["episodes"]), f"{proven} / {o['episodes_known']}",
+            f"{o['coverage_ratio']:.2%}", f"{o['bound_ratio']:.2%}",
+        ]  # fmt: skip
+        for row in rows:
+            gap = row["optimum"]["gap_to_optimal"] * 100
+            cells.append(f"{row['coverage_ratio']:.2%} ({-gap:+.2f})")
+        lines.append("| " + " | ".join(cells) + " |")
+    policy_names = ", ".join(r["policy"] for r in data["results"][: len(names)])
+    lines.append("")
+    lines.append(
+        f"Grid, full protocol per map ({policy_names}); gap = the policy's coverage minus the "
+        "best missions', in points, over the same episodes. Written by "
+        "`python scripts/optimum_report.py` from `results/optimum_abc.json`."
+    )
+    return "\n".join(lines)
+
+
+def with_table(text: str, table: str) -> str:
+    if BEGIN not in text or END not in text:
+        raise SystemExit(f"optimum_report.py: {DOC} lacks the markers {BEGIN} … {END}")
+    before, rest = text.split(BEGIN, 1)
+    _, after = rest.split(END, 1)
+    return f"{before}{BEGIN}\n{table}\n{END}{after}"
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument("--evaluate", action="store_true", help="fly the policies first")
+    p.add_argument("--check", action="store_true", help="exit 1 if the doc's table drifted")
+    args = p.parse_args(argv)
+    data = evaluate_all() if args.evaluate else json.loads(RESULT.read_text())
+    text = DOC.read_text()
+    wanted = with_table(text, render(data))
+    if args.check:
+        if wanted != text:
+            print(f"{DOC} does not hold the table of {RESULT}; run scripts/optimum_report.py")
+            return 1
+        return 0
+    if wanted != text:
+        from cpp_mujoco.io import atomic_write_text
+
+        atomic_write_text(DOC, wanted)
+    print(render(data))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
