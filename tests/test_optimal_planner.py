@@ -175,3 +175,24 @@ def test_the_docs_table_is_the_result_files():
     for row in data["results"]:  # each committed result names its map, policy and optimum
         assert row["map_digest"] == load_map(row["map"]).digest
         assert row["optimum"]["episodes_known"] == row["episodes"]
+
+
+def test_a_failing_worker_stops_the_run_and_keeps_what_was_solved(tmp_path, monkeypatch):
+    import cpp_mujoco.planners.optimal as optimal
+
+    real = optimal.solve_episode
+
+    def fails_at_the_last_budget(g, cell, budget, **kwargs):
+        if budget == 75:
+            raise RuntimeError("solver worker broke")
+        return real(g, cell, budget, **kwargs)
+
+    monkeypatch.setattr(optimal, "solve_episode", fails_at_the_last_budget)  # forked workers too
+    grid_map = load_map("C")
+    starts, budgets = protocol_episodes(grid_map, [74, 75])
+    order = np.argsort(budgets, kind="stable")  # every 74 before the first 75
+    cache = OptimumCache(tmp_path, grid_map)
+    with pytest.raises(RuntimeError, match="solver worker broke"):
+        solve_episodes(grid_map, starts[order], budgets[order], SolverOptions(5), cache, jobs=2)
+    kept = json.loads(cache.path.read_text())["entries"]
+    assert kept and all(key.endswith(",74") for key in kept)

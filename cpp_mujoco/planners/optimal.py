@@ -5,14 +5,14 @@
 computed for all of them at once — over ``jobs`` processes, saving the cache as it goes. A worker
 that fails stops the run with its error; what was solved before is kept.
 :class:`OptimalPlanner` is the policy: at an episode's first step it takes the cached mission or
-solves one, then follows it; if the observed state departs from the plan (the physics backend),
-it solves again from where it is, with what it has seen.
+solves one, then follows it; if the UAV is not over the plan's cell or has too little budget left
+to finish the plan (the physics backend), it solves again from where it is, with what it has seen.
 """
 
 from __future__ import annotations
 
+import multiprocessing
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict
 
 import numpy as np
@@ -94,17 +94,18 @@ def solve_episodes(
         solver = solver_version()
         saved = time.monotonic()
         bar = tqdm(total=len(work), desc=f"optimum {grid_map.label}", disable=not progress)
+        pool = multiprocessing.get_context("fork").Pool(jobs, _init_worker, (grid_map, fov_side))
         try:
-            with ProcessPoolExecutor(jobs, initializer=_init_worker,
-                                     initargs=(grid_map, fov_side)) as pool:  # fmt: skip
-                for i, mission in zip(todo, pool.map(_solve_one, work), strict=True):
-                    cache.put(tuple(starts[i]), int(budgets[i]), mission,
-                              options.time_limit_s, options.workers, solver)  # fmt: skip
-                    bar.update()
-                    if cache.path is not None and time.monotonic() - saved > SAVE_EVERY_S:
-                        cache.save()
-                        saved = time.monotonic()
-        finally:
+            for i, mission in zip(todo, pool.imap(_solve_one, work), strict=True):
+                cache.put(tuple(starts[i]), int(budgets[i]), mission,
+                          options.time_limit_s, options.workers, solver)  # fmt: skip
+                bar.update()
+                if cache.path is not None and time.monotonic() - saved > SAVE_EVERY_S:
+                    cache.save()
+                    saved = time.monotonic()
+        finally:  # a failed worker or an interruption stops every worker now; the rest is kept
+            pool.terminate()
+            pool.join()
             bar.close()
             if cache.path is not None:
                 cache.save()
@@ -126,18 +127,17 @@ class OptimalPlanner:
         self.reset(0)
 
     def identity(self) -> dict:
-        """What results record of this planner: the solver, its limits, what it proved."""
-        return {
-            "solver": solver_version(),
-            **asdict(self.options),
-            "statuses": dict(sorted(self.statuses.items())),
-        }
+        """What results record of this planner: the solver, its limits, and what it proved (the
+        statuses of the missions this process planned; none where worker processes flew)."""
+        out = {"solver": solver_version(), **asdict(self.options)}
+        if self.statuses:
+            out["statuses"] = dict(sorted(self.statuses.items()))
+        return out
 
     def reset(self, num_episodes: int, seed: int | None = None) -> None:
         self._plans: list[np.ndarray] | None = None
         self._cells: list[np.ndarray] = []
         self._cursor = np.zeros(0, dtype=np.int64)
-        self._budget0 = np.zeros(0, dtype=np.int64)
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         g = graph_from_observation(obs, self.fov_side)
@@ -149,7 +149,9 @@ class OptimalPlanner:
         for i in range(n):
             k = self._cursor[i]
             plan = self._plans[i]
-            if k < plan.size and (self._cells[i][k] != pos[i] or self._budget0[i] - k != budget[i]):
+            # off the plan's cell, or too little budget left to finish it (physics: a move may
+            # cost more than a unit): solve again from here
+            if k < plan.size and (self._cells[i][k] != pos[i] or budget[i] < plan.size - k):
                 self._replan(g, i, pos[i], budget[i], coverage[i])
                 k, plan = 0, self._plans[i]
             if k < plan.size:
@@ -162,7 +164,6 @@ class OptimalPlanner:
         fresh = ~coverage.any(axis=1) & grid_map.landing.reshape(-1)[pos]
         self._plans = [np.zeros(0, np.int64)] * pos.size
         self._cells = [np.zeros(0, np.int64)] * pos.size
-        self._budget0 = budget.copy()
         self._cursor = np.zeros(pos.size, dtype=np.int64)
         if fresh.any():
             rows = np.flatnonzero(fresh)
@@ -181,7 +182,6 @@ class OptimalPlanner:
         hint = beam_missions_from(g, cell, budget, coverage, self.fov_side)
         mission = solve_episode(g, int(cell), int(budget), coverage, self.options, hint)
         self._count(mission.status)
-        self._budget0[i] = budget
         self._cursor[i] = 0
         self._set(g, i, cell, mission.actions)
 
