@@ -1,8 +1,8 @@
-"""The policies against the optimum on maps A, B and C: the table of docs/optimum.md.
+"""The policies against the optimum on maps A, B and C: the table of README.md and docs/optimum.md.
 
     python scripts/optimum_report.py --evaluate   # fly the policies, write results/optimum_abc.json
-    python scripts/optimum_report.py              # write the table from that file into the doc
-    python scripts/optimum_report.py --check      # exit 1 if the doc's table is not the file's
+    python scripts/optimum_report.py              # write the table from that file into the docs
+    python scripts/optimum_report.py --check      # exit 1 if a doc's table is not the file's
 
 The optimum comes from the committed cache (results/optimum/, filled by ``cpp-mujoco optimum``);
 each policy flies the paper's full protocol on the grid, and its gap to the best missions is
@@ -19,7 +19,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULT = ROOT / "results" / "optimum_abc.json"
-DOC = ROOT / "docs" / "optimum.md"
+DOCS = (ROOT / "README.md", ROOT / "docs" / "optimum.md")
 BEGIN, END = "<!-- optimum-table:begin -->", "<!-- optimum-table:end -->"
 MAPS = ("A", "B", "C")
 
@@ -86,9 +86,9 @@ def render(data: dict) -> str:
     return "\n".join(lines)
 
 
-def with_table(text: str, table: str) -> str:
+def with_table(doc: Path, text: str, table: str) -> str:
     if BEGIN not in text or END not in text:
-        raise SystemExit(f"optimum_report.py: {DOC} lacks the markers {BEGIN} … {END}")
+        raise SystemExit(f"optimum_report.py: {doc} lacks the markers {BEGIN} … {END}")
     before, rest = text.split(BEGIN, 1)
     _, after = rest.split(END, 1)
     return f"{before}{BEGIN}\n{table}\n{END}{after}"
@@ -102,18 +102,19 @@ def main(argv=None) -> int:
     p.add_argument("--check", action="store_true", help="exit 1 if the doc's table drifted")
     args = p.parse_args(argv)
     data = evaluate_all() if args.evaluate else json.loads(RESULT.read_text())
-    text = DOC.read_text()
-    wanted = with_table(text, render(data))
-    if args.check:
-        if wanted != text:
-            print(f"{DOC} does not hold the table of {RESULT}; run scripts/optimum_report.py")
+    table = render(data)
+    for doc in DOCS:
+        text = doc.read_text()
+        wanted = with_table(doc, text, table)
+        if args.check and wanted != text:
+            print(f"{doc} does not hold the table of {RESULT}; run scripts/optimum_report.py")
             return 1
-        return 0
-    if wanted != text:
-        from cpp_mujoco.io import atomic_write_text
+        if wanted != text:
+            from cpp_mujoco.io import atomic_write_text
 
-        atomic_write_text(DOC, wanted)
-    print(render(data))
+            atomic_write_text(doc, wanted)
+    if not args.check:
+        print(table)
     return 0
 
 
