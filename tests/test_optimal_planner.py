@@ -196,3 +196,17 @@ def test_a_failing_worker_stops_the_run_and_keeps_what_was_solved(tmp_path, monk
         solve_episodes(grid_map, starts[order], budgets[order], SolverOptions(5), cache, jobs=2)
     kept = json.loads(cache.path.read_text())["entries"]
     assert kept and all(key.endswith(",74") for key in kept)
+
+
+def test_a_results_trajectory_flies_again_as_actions():
+    from cpp_mujoco.planners.optimal import trajectory_actions
+
+    grid_map = load_map("B")
+    g = build_graph(grid_map)
+    result = evaluate(make_planner("safe-greedy"), grid_map, budgets=[30, 60])
+    for i in range(result.landed.size):
+        actions = trajectory_actions(g, result.trajectories[i])
+        cell = int(result.starts[i, 0] * 16 + result.starts[i, 1])
+        seen, landed = fly(g, cell, actions, np.zeros(g.num_cells, bool))
+        assert landed and seen == round(result.coverage[i] * grid_map.target.sum())
+        assert actions.size == result.steps[i]

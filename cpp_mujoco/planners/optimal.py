@@ -42,6 +42,19 @@ def beam_missions(
     return [actions[i, : taken[i]] for i in range(cells.size)]
 
 
+def trajectory_actions(g: MapGraph, cells: np.ndarray) -> np.ndarray:
+    """A landed episode's actions from the cells it was over (a result's trajectory, -1 after
+    the end): the moves between them, a rejected action where it stayed, then the landing."""
+    cells = np.asarray(cells, dtype=np.int64)
+    cells = cells[cells >= 0][:-1]  # the last entry is where it landed: the landing's own
+    actions = []
+    for here, there in zip(cells[:-1], cells[1:], strict=True):
+        moves = np.flatnonzero(g.safety.next_cell[here, :LAND] == there)
+        stays = np.flatnonzero(~g.safety.accepted[here])
+        actions.append(int(moves[0]) if here != there else int(stays[0]))
+    return np.array(actions + [LAND], dtype=np.int64)
+
+
 _worker_graph: MapGraph | None = None
 
 

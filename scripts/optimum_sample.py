@@ -1,0 +1,202 @@
+"""The policies against the best missions on a random sample of a held-out set's episodes.
+
+    python scripts/optimum_sample.py --map-set heldout16-v1 --episodes 120 --time-limit 10 --jobs 2
+    python scripts/optimum_sample.py --map-set heldout16-v1 --render   # the table from the file
+
+Draws episodes uniformly over the set's protocol (a map, one of its landing cells, a budget of its
+size class; seeded), flies safe greedy, beam search and the general agent on them, solves each
+into the optimum cache (results/optimum/) from the best of their missions, and writes
+results/optimum_<set>.json: per policy its mean coverage, its mean gap to the best missions found
+with the gap's standard error, and how many of the best missions are proven, with the mean bound.
+The table in docs/optimum.md is written from that file (``--render``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+DOC = ROOT / "docs" / "optimum.md"
+POLICIES = ("safe-greedy", "beam-search", "general")
+
+
+def result_path(name: str) -> Path:
+    return ROOT / "results" / f"optimum_{name}.json"
+
+
+def draw(maps, episodes: int, seed: int) -> list[tuple[int, tuple[int, int], int]]:
+    from cpp_mujoco.size_classes import budget_range
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(episodes):
+        k = int(rng.integers(len(maps)))
+        cells = np.argwhere(maps[k].landing)
+        row, col = cells[rng.integers(len(cells))]
+        lo, hi = budget_range(maps[k].shape[0])
+        out.append((k, (int(row), int(col)), int(rng.integers(lo, hi + 1))))
+    return out
+
+
+def solve_one(task):
+    """One sampled episode's best mission, warm-started from the best policy's."""
+    from cpp_mujoco.grid.graph import build_graph
+    from cpp_mujoco.planners.optimal_model import solve_episode
+
+    grid_map, (row, col), budget, options, hint = task
+    cell = row * grid_map.shape[1] + col
+    return solve_episode(build_graph(grid_map), cell, budget, options=options, hint=hint)
+
+
+def run(args) -> dict:
+    from cpp_mujoco.agent import load_agent
+    from cpp_mujoco.evaluate import evaluate
+    from cpp_mujoco.grid.graph import build_graph
+    from cpp_mujoco.io import atomic_write_text
+    from cpp_mujoco.map_sets import load_map_set
+    from cpp_mujoco.planners import make_planner
+    from cpp_mujoco.planners.optimal import trajectory_actions
+    from cpp_mujoco.planners.optimal_model import SolverOptions, solver_version
+    from cpp_mujoco.planners.optimum_cache import OptimumCache
+
+    maps = load_map_set(args.map_set)
+    sample = draw(maps, args.episodes, args.seed)
+    hints = [(-1.0, None)] * len(sample)
+    agents = {"general": load_agent("general")}
+    coverage = {}
+    for name in POLICIES:
+        policy = agents.get(name) or make_planner(name)
+        cov = []
+        for j, (k, start, budget) in enumerate(sample):
+            result = evaluate(policy, maps[k], budgets=[budget])
+            i = int(np.flatnonzero((result.starts == start).all(axis=1))[0])
+            cov.append(float(result.coverage[i]))
+            if result.landed[i] and cov[-1] > hints[j][0]:  # the best policy's mission
+                g = build_graph(maps[k])
+                hints[j] = (cov[-1], trajectory_actions(g, result.trajectories[i]))
+        coverage[name] = cov
+    options = SolverOptions(time_limit_s=args.time_limit)
+    caches = {}
+    for k, _, _ in sample:
+        caches.setdefault(k, OptimumCache(ROOT / "results" / "optimum", maps[k]))
+    todo = [
+        (maps[k], s, b, options, hints[j][1]) for j, (k, s, b) in enumerate(sample)
+        if not caches[k].usable(s, b, options.time_limit_s)
+    ]  # fmt: skip
+    solver = solver_version()
+    with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
+        for (grid_map, s, b, *_), mission in zip(todo, pool.imap(solve_one, todo), strict=True):
+            k = next(i for i, m in enumerate(maps) if m is grid_map)
+            caches[k].put(s, b, mission, options.time_limit_s, options.workers, solver)
+            caches[k].save()
+    best, bound, status = [], [], []
+    for k, start, budget in sample:
+        entry = caches[k].get(start, budget)
+        targets = maps[k].target.sum()
+        best.append(entry["seen"] / targets)
+        bound.append(entry["bound"] / targets)
+        status.append(entry["status"])
+    best_a = np.array(best)
+    data = {
+        "map_set": args.map_set,
+        "episodes": [
+            {"map": maps[k].label, "map_digest": maps[k].digest, "start": s, "budget": b}
+            for k, s, b in sample
+        ],
+        "seed": args.seed,
+        "solver": solver_version(),
+        "time_limit_s": args.time_limit,
+        "statuses": {s: status.count(s) for s in sorted(set(status))},
+        "best_found": float(best_a.mean()),
+        "bound": float(np.mean(bound)),
+        "policies": {
+            name: {
+                "coverage": float(np.mean(cov)),
+                "gap_to_best": float((np.array(cov) - best_a).mean()),
+                "gap_standard_error": float(
+                    (np.array(cov) - best_a).std(ddof=1) / np.sqrt(len(cov))
+                ),  # fmt: skip
+            }
+            for name, cov in coverage.items()
+        },
+    }
+    atomic_write_text(result_path(args.map_set), json.dumps(data, indent=1))
+    return data
+
+
+def render(data: dict) -> str:
+    n = len(data["episodes"])
+    proven = data["statuses"].get("optimal", 0)
+    lines = [
+        "| policy | coverage | gap to the best missions (± standard error) |",
+        "|---|---|---|",
+        f"| best missions found ({proven} / {n} proven) | {data['best_found']:.2%} | — |",
+        f"| proven bound | {data['bound']:.2%} | — |",
+    ]
+    for name, p in data["policies"].items():
+        lines.append(
+            f"| {name} | {p['coverage']:.2%} | {p['gap_to_best'] * 100:+.2f} "
+            f"± {p['gap_standard_error'] * 100:.2f} pt |"
+        )
+    lines += [
+        "",
+        f"{data['map_set']}: {n} episodes drawn uniformly over its protocol (seed "
+        f"{data['seed']}), {data['solver']}, {data['time_limit_s']:g} s per episode on one core. "
+        f"Written by `python scripts/optimum_sample.py --map-set {data['map_set']} --render`.",
+    ]
+    return "\n".join(lines)
+
+
+def markers(name: str) -> tuple[str, str]:
+    return f"<!-- optimum-{name}:begin -->", f"<!-- optimum-{name}:end -->"
+
+
+def write_doc(data: dict, check: bool = False) -> int:
+    begin, end = markers(data["map_set"])
+    text = DOC.read_text()
+    if begin not in text:
+        raise SystemExit(f"optimum_sample.py: {DOC} lacks the markers {begin} … {end}")
+    before, rest = text.split(begin, 1)
+    after = rest.split(end, 1)[1]
+    wanted = f"{before}{begin}\n{render(data)}\n{end}{after}"
+    if check:
+        return int(wanted != text)
+    if wanted != text:
+        from cpp_mujoco.io import atomic_write_text
+
+        atomic_write_text(DOC, wanted)
+    return 0
+
+
+def main(argv=None) -> int:
+    from cpp_mujoco.optimum_commands import positive_seconds
+
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument("--map-set", default="heldout16-v1")
+    p.add_argument("--episodes", type=int, default=120)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--time-limit", type=positive_seconds, default=10.0)
+    p.add_argument("--jobs", type=int, default=1)
+    p.add_argument("--render", action="store_true", help="only write the doc's table")
+    p.add_argument("--check", action="store_true", help="exit 1 if the doc's table drifted")
+    args = p.parse_args(argv)
+    if args.render or args.check:
+        data = json.loads(result_path(args.map_set).read_text())
+    else:
+        data = run(args)
+    code = write_doc(data, check=args.check)
+    if not args.check:
+        print(render(data))
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
