@@ -149,11 +149,15 @@ def solve_episode(
     bound = reachable_bound(g, start, budget, seen)
     if budget == 1:  # one unit: the landing, on the start (a landing cell: home[start] is 1)
         hint = np.array([LAND])
+    known = None  # the hint, when it is a mission of this episode
     if hint is not None:
         hint = np.asarray(hint, dtype=np.int64)
         hint_seen, hint_landed = fly(g, start, hint, seen)
-        if hint_landed and hint.size <= budget and hint_seen >= bound:
-            return Mission(hint, hint_seen, bound, "optimal", time.perf_counter() - began)
+        if hint_landed and hint.size <= budget:
+            known = Mission(hint, hint_seen, bound, "feasible", 0.0)
+            if hint_seen >= bound:
+                known.status, known.time_s = "optimal", time.perf_counter() - began
+                return known
     model = _Model(g, start, int(budget) - 1, seen)
     if hint is not None:
         model.hint(hint)
@@ -166,6 +170,11 @@ def solve_episode(
     status = STATUS.get(code, "unknown")
     elapsed = time.perf_counter() - began
     if code not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
+        if code == cp_model.INFEASIBLE and known is not None:
+            raise RuntimeError(f"the optimal model refuses a mission the MDP flies ({hint})")
+        if known is not None:  # no solution in time (a large map): the hint, with the bound
+            known.time_s = elapsed
+            return known
         return Mission(np.zeros(0, np.int64), already, already, status, elapsed)
     actions = model.actions(solver)
     flown, landed = fly(g, start, actions, seen)
@@ -175,8 +184,10 @@ def solve_episode(
             f"the optimal model's mission from cell {start} with budget {budget} flies to "
             f"{flown} targets (landed {landed}), the model says {value}: a modelling error"
         )
-    proven = already + int(np.floor(solver.best_objective_bound + 1e-6))
-    return Mission(actions, value, max(min(proven, bound), value), status, elapsed)
+    proven = max(min(already + int(np.floor(solver.best_objective_bound + 1e-6)), bound), value)
+    if known is not None and known.seen > value:  # the solver never got to the hint's mission
+        return Mission(known.actions, known.seen, max(proven, known.seen), "feasible", elapsed)
+    return Mission(actions, value, proven, status, elapsed)
 
 
 def _group(keys: np.ndarray) -> dict[int, np.ndarray]:
