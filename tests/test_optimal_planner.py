@@ -210,3 +210,12 @@ def test_a_results_trajectory_flies_again_as_actions():
         seen, landed = fly(g, cell, actions, np.zeros(g.num_cells, bool))
         assert landed and seen == round(result.coverage[i] * grid_map.target.sum())
         assert actions.size == result.steps[i]
+
+
+def test_two_writers_of_one_cache_keep_each_others_entries(tmp_path):
+    grid_map = load_map("C")
+    starts, budgets = protocol_episodes(grid_map, [75])
+    one, two = OptimumCache(tmp_path, grid_map), OptimumCache(tmp_path, grid_map)
+    solve_episodes(grid_map, starts[:2], budgets[:2], SolverOptions(5), one)
+    solve_episodes(grid_map, starts[2:4], budgets[2:4], SolverOptions(5), two)
+    assert len(OptimumCache(tmp_path, grid_map).entries) == 4

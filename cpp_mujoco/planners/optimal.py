@@ -88,11 +88,13 @@ def solve_episodes(
     cache = cache or OptimumCache.in_memory(grid_map, fov_side)
     starts = np.asarray(starts, dtype=np.int64).reshape(-1, 2)
     budgets = np.asarray(budgets, dtype=np.int64).reshape(-1)
-    todo = [
-        i for i in range(len(budgets))
+    keys = [(int(s[0]), int(s[1]), int(b)) for s, b in zip(starts, budgets, strict=True)]
+    first = {key: i for i, key in reversed(list(enumerate(keys)))}  # each episode once
+    todo = sorted(
+        i
+        for i in first.values()
         if not cache.usable(tuple(starts[i]), int(budgets[i]), options.time_limit_s)
-    ]  # fmt: skip
-    todo = list(dict.fromkeys(todo))
+    )  # fmt: skip
     if todo:
         cells = starts[todo, 0] * grid_map.shape[1] + starts[todo, 1]
         hints = beam_missions(grid_map, cells, budgets[todo], fov_side)

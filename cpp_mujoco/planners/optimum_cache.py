@@ -109,6 +109,19 @@ class OptimumCache:
         }
 
     def save(self) -> None:
+        """Write every entry, merged with what the file holds now (another process solving the
+        same map keeps its entries: of two entries for one episode the better mission and the
+        lower bound are kept)."""
+        if self.path is not None and self.path.exists():
+            for key, theirs in self._read().items():
+                mine = self.entries.get(key)
+                if mine is None:
+                    self.entries[key] = theirs
+                elif theirs["seen"] > mine["seen"] or theirs["bound"] < mine["bound"]:
+                    better = theirs if theirs["seen"] >= mine["seen"] else mine
+                    bound = min(theirs["bound"], mine["bound"])
+                    status = "optimal" if better["seen"] >= bound else better["status"]
+                    self.entries[key] = {**better, "bound": bound, "status": status}
         data = {
             "format": FORMAT,
             "map": self.label,
