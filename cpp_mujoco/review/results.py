@@ -31,7 +31,15 @@ PROTOCOL_COLUMNS = [
     "map", "policy", "episodes", "landing", "coverage", "optimal", "gap to optimal",
     "paper landing", "seconds",
 ]  # fmt: skip
-DEMO_GRID_COLUMNS = ["map", "policy", "landing", "coverage", "paper landing"]
+DEMO_GRID_COLUMNS = [
+    "map",
+    "policy",
+    "landing",
+    "coverage",
+    "optimal",
+    "gap to optimal",
+    "paper landing",
+]
 TRANSFER_COLUMNS = [
     "map", "policy", "episodes", "grid landing", "mujoco landing", "grid coverage",
     "mujoco coverage", "J/action", "nfz viol.",
