@@ -12,6 +12,7 @@ to finish the plan (the physics backend), it solves again from where it is, with
 from __future__ import annotations
 
 import multiprocessing
+import signal
 import time
 from dataclasses import asdict
 
@@ -59,7 +60,11 @@ _worker_graph: MapGraph | None = None
 
 
 def _init_worker(grid_map: GridMap, fov_side: int) -> None:
+    """A worker ends quietly when the pool terminates it; Ctrl-C is the main process's to
+    handle (it saves the cache, then terminates the pool)."""
     global _worker_graph
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _worker_graph = build_graph(grid_map, fov_side)
 
 

@@ -179,15 +179,18 @@ def solve_episode(
     actions = model.actions(solver)
     flown, landed = fly(g, start, actions, seen)
     value = already + int(round(solver.objective_value))
-    if not landed or flown != value:
+    # a solution that is not proven may leave a target it reveals uncounted: the MDP's count is
+    # the mission's; never fewer than the model's, and the same once proven
+    if not landed or flown < value or (code == cp_model.OPTIMAL and flown != value):
         raise RuntimeError(
             f"the optimal model's mission from cell {start} with budget {budget} flies to "
             f"{flown} targets (landed {landed}), the model says {value}: a modelling error"
         )
-    proven = max(min(already + int(np.floor(solver.best_objective_bound + 1e-6)), bound), value)
-    if known is not None and known.seen > value:  # the solver never got to the hint's mission
+    proven = max(min(already + int(np.floor(solver.best_objective_bound + 1e-6)), bound), flown)
+    if known is not None and known.seen > flown:  # the solver never got to the hint's mission
         return Mission(known.actions, known.seen, max(proven, known.seen), "feasible", elapsed)
-    return Mission(actions, value, proven, status, elapsed)
+    status = "optimal" if flown >= proven else status
+    return Mission(actions, flown, proven, status, elapsed)
 
 
 def _group(keys: np.ndarray) -> dict[int, np.ndarray]:
