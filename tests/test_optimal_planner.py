@@ -219,3 +219,17 @@ def test_two_writers_of_one_cache_keep_each_others_entries(tmp_path):
     solve_episodes(grid_map, starts[:2], budgets[:2], SolverOptions(5), one)
     solve_episodes(grid_map, starts[2:4], budgets[2:4], SolverOptions(5), two)
     assert len(OptimumCache(tmp_path, grid_map).entries) == 4
+
+
+def test_the_command_line_flies_the_optimal_planner_beside_the_others(tmp_path, capsys):
+    args = ["evaluate", "--map", "C", "--planner", "optimal", "beam-search", "--budget-step",
+            "25", "--optimum", str(default_folder()), "--out", str(tmp_path)]  # fmt: skip
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "gap to optimal" in out and "optimal" in out
+    saved = json.loads((tmp_path / "grid_C_optimal.json").read_text())
+    assert saved["optimum"]["gap_to_optimal"] == 0.0
+    assert saved["conditions"]["policy"]["statuses"] == {"optimal": saved["episodes"]}
+    with pytest.raises(SystemExit) as bad:
+        main(["optimum", "--map", "C", "--time-limit", "nan"])
+    assert bad.value.code == 2
