@@ -228,12 +228,13 @@ def _conflicts(g: MapGraph, start: int, moves: int, targets: np.ndarray) -> np.n
     far = 10 * (moves + 1)
     to = np.where(local >= 0, out[np.maximum(viewers, 0)], far)  # (Q, 9): start → viewer
     back = np.where(local >= 0, home[np.maximum(viewers, 0)], far)  # viewer → landing
-    pair = between[np.maximum(local, 0)[:, :, None, None], np.maximum(local, 0)[None, None]]
-    # (Q, 9, Q, 9): see q1 from viewer i, then q2 from viewer j (or the other way round)
-    cost = np.minimum(
-        to[:, :, None, None] + pair + back[None, None],
-        to[None, None] + pair + back[:, :, None, None],
-    ).min(axis=(1, 3))
+    index = np.maximum(local, 0)
+    cost = np.full((targets.size, targets.size), far, dtype=np.int64)
+    for i in range(viewers.shape[1]):  # (Q, Q, 9) at a time: q1 from its viewer i, q2 from any
+        pair = between[index[:, i][:, None, None], index[None, :, :]]
+        there = to[:, i][:, None, None] + pair + back[None, :, :]  # q1 first
+        back_again = to[None, :, :] + pair + back[:, i][:, None, None]  # q2 first
+        cost = np.minimum(cost, np.minimum(there, back_again).min(axis=2))
     a, b = np.nonzero(np.triu(cost > moves, k=1))
     return np.stack([targets[a], targets[b]], axis=1)
 
