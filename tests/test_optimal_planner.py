@@ -169,12 +169,22 @@ def test_beam_missions_land_within_their_budget():
 def test_the_docs_table_is_the_result_files():
     import runpy
 
+    from cpp_mujoco.map_sets import load_map_set
+
     script = runpy.run_path(str(Path(__file__).parent.parent / "scripts" / "optimum_report.py"))
     assert script["main"](["--check"]) == 0
     data = json.loads(script["RESULT"].read_text())
     for row in data["results"]:  # each committed result names its map, policy and optimum
         assert row["map_digest"] == load_map(row["map"]).digest
         assert row["optimum"]["episodes_known"] == row["episodes"]
+    sample = runpy.run_path(str(Path(__file__).parent.parent / "scripts" / "optimum_sample.py"))
+    for name in ("heldout16-v1", "heldout32-v1"):
+        assert sample["main"](["--map-set", name, "--check"]) == 0
+        drawn = json.loads(sample["result_path"](name).read_text())
+        maps = {m.digest: m for m in load_map_set(name)}
+        for episode in drawn["episodes"]:  # every sampled episode is in the committed cache
+            cache = OptimumCache(default_folder(), maps[episode["map_digest"]])
+            assert cache.get(tuple(episode["start"]), episode["budget"]) is not None
 
 
 def test_a_failing_worker_stops_the_run_and_keeps_what_was_solved(tmp_path, monkeypatch):
