@@ -21,6 +21,7 @@ def positive_seconds(text: str) -> float:
 
 def add_solver_options(p) -> None:
     from cpp_mujoco.commands import int_at_least
+    from cpp_mujoco.planners.optimal_solver import SOLVERS
 
     p.add_argument(
         "--time-limit", type=positive_seconds, default=60.0, metavar="S",
@@ -29,7 +30,12 @@ def add_solver_options(p) -> None:
     )  # fmt: skip
     p.add_argument(
         "--solver-workers", type=int_at_least(1), default=1,
-        help="CP-SAT search workers (threads) per episode (default: %(default)s)",
+        help="the solver's threads per episode (default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--solver", choices=SOLVERS, default=SOLVERS[0],
+        help="the exact planner's solver: HiGHS (branch and cut) or OR-Tools CP-SAT "
+        "(default: %(default)s)",
     )  # fmt: skip
     p.add_argument(
         "--jobs", type=int_at_least(1), default=1,
@@ -44,9 +50,11 @@ def add_solver_options(p) -> None:
 
 def optimal_options(args) -> dict:
     """``make_planner("optimal", optimal=...)``'s keyword arguments from the command line."""
-    from cpp_mujoco.planners.optimal_model import SolverOptions
+    from cpp_mujoco.planners.optimal_solver import SolverOptions
 
-    options = SolverOptions(time_limit_s=args.time_limit, workers=args.solver_workers)
+    options = SolverOptions(
+        time_limit_s=args.time_limit, workers=args.solver_workers, solver=args.solver
+    )
     return {"options": options, "cache_folder": args.optimum, "jobs": args.jobs}
 
 

@@ -47,7 +47,7 @@ def draw(maps, episodes: int, seed: int) -> list[tuple[int, tuple[int, int], int
 def solve_one(task):
     """One sampled episode's best mission, warm-started from the best policy's."""
     from cpp_mujoco.grid.graph import build_graph
-    from cpp_mujoco.planners.optimal_model import solve_episode
+    from cpp_mujoco.planners.optimal_solver import solve_episode
 
     grid_map, (row, col), budget, options, hint = task
     cell = row * grid_map.shape[1] + col
@@ -62,7 +62,7 @@ def run(args) -> dict:
     from cpp_mujoco.map_sets import load_map_set
     from cpp_mujoco.planners import make_planner
     from cpp_mujoco.planners.optimal import trajectory_actions
-    from cpp_mujoco.planners.optimal_model import SolverOptions, solver_version
+    from cpp_mujoco.planners.optimal_solver import SolverOptions, solver_version
     from cpp_mujoco.planners.optimum_cache import OptimumCache
 
     maps = load_map_set(args.map_set)
@@ -87,9 +87,9 @@ def run(args) -> dict:
         caches.setdefault(k, OptimumCache(ROOT / "results" / "optimum", maps[k]))
     todo = [
         (maps[k], s, b, options, hints[j][1]) for j, (k, s, b) in enumerate(sample)
-        if not caches[k].usable(s, b, options.time_limit_s)
+        if not caches[k].usable(s, b, options)
     ]  # fmt: skip
-    solver = solver_version()
+    solver = solver_version(options.solver)
     with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
         for (grid_map, s, b, *_), mission in zip(todo, pool.imap(solve_one, todo), strict=True):
             k = next(i for i, m in enumerate(maps) if m is grid_map)
@@ -110,7 +110,7 @@ def run(args) -> dict:
             for k, s, b in sample
         ],
         "seed": args.seed,
-        "solver": solver_version(),
+        "solver": solver_version(options.solver),
         "time_limit_s": args.time_limit,
         "statuses": {s: status.count(s) for s in sorted(set(status))},
         "best_found": float(best_a.mean()),

@@ -16,7 +16,8 @@ from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.planners.optimal import beam_missions, solve_episodes
-from cpp_mujoco.planners.optimal_model import SolverOptions, fly, solve_episode
+from cpp_mujoco.planners.optimal_model import fly
+from cpp_mujoco.planners.optimal_solver import SolverOptions, solve_episode
 from cpp_mujoco.planners.optimum_cache import CacheError, OptimumCache
 from cpp_mujoco.protocol_optimum import default_folder
 
@@ -50,12 +51,13 @@ def best_by_every_sequence(grid_map: GridMap, start, budget: int) -> int:
     return int(mdp.seen_targets[mdp.landed].max())
 
 
+@pytest.mark.parametrize("solver", ["highs", "cp-sat"])
 @pytest.mark.parametrize("budget", [1, 2, 3, 5, 7])
-def test_the_model_finds_what_every_action_sequence_finds(budget):
+def test_the_model_finds_what_every_action_sequence_finds(budget, solver):
     grid_map = small_map()
     g = build_graph(grid_map)
     for row, col in np.argwhere(grid_map.landing):
-        mission = solve_episode(g, int(row * 5 + col), budget)
+        mission = solve_episode(g, int(row * 5 + col), budget, options=SolverOptions(solver=solver))
         assert mission.status == "optimal"
         assert mission.seen == mission.bound == best_by_every_sequence(grid_map, (row, col), budget)
         seen, landed = fly(g, int(row * 5 + col), mission.actions, np.zeros(25, bool))
@@ -92,7 +94,7 @@ def test_the_committed_missions_fly_and_beat_beam_search():
         assert entry["status"] == "optimal" and entry["seen"] == entry["bound"]
         assert result.coverage[i] * targets == pytest.approx(entry["seen"])  # the env's own count
     assert (result.coverage >= beam.coverage - 1e-12).all()
-    assert result.conditions["policy"]["solver"].startswith("OR-Tools CP-SAT")
+    assert result.conditions["policy"]["solver"].startswith("HiGHS")
 
 
 def test_an_episode_without_a_way_home_is_infeasible_not_a_crash():

@@ -23,7 +23,7 @@ from cpp_mujoco.grid.graph import MapGraph, build_graph, graph_from_observation
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners.beam_search import BeamSearchPlanner
-from cpp_mujoco.planners.optimal_model import Mission, SolverOptions, solve_episode, solver_version
+from cpp_mujoco.planners.optimal_solver import Mission, SolverOptions, solve_episode, solver_version
 from cpp_mujoco.planners.optimum_cache import OptimumCache
 from cpp_mujoco.planners.rollout import decode_observation, rollout
 
@@ -98,7 +98,7 @@ def solve_episodes(
     todo = sorted(
         i
         for i in first.values()
-        if not cache.usable(tuple(starts[i]), int(budgets[i]), options.time_limit_s)
+        if not cache.usable(tuple(starts[i]), int(budgets[i]), options)
     )  # fmt: skip
     if todo:
         cells = starts[todo, 0] * grid_map.shape[1] + starts[todo, 1]
@@ -111,7 +111,7 @@ def solve_episodes(
             (int(c), int(budgets[i]), h, options)
             for c, i, h in zip(cells, todo, hints, strict=True)
         ]
-        solver = solver_version()
+        solver = solver_version(options.solver)
         saved = time.monotonic()
         bar = tqdm(total=len(work), desc=f"optimum {grid_map.label}", disable=not progress)
         pool = multiprocessing.get_context("fork").Pool(jobs, _init_worker, (grid_map, fov_side))
@@ -149,7 +149,7 @@ class OptimalPlanner:
     def identity(self) -> dict:
         """What results record of this planner: the solver, its limits, and what it proved (the
         statuses of the missions this process planned; none where worker processes flew)."""
-        out = {"solver": solver_version(), **asdict(self.options)}
+        out = {**asdict(self.options), "solver": solver_version(self.options.solver)}
         if self.statuses:
             out["statuses"] = dict(sorted(self.statuses.items()))
         return out

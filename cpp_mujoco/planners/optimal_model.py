@@ -1,4 +1,4 @@
-"""The grid MDP's best mission as a constraint program (OR-Tools CP-SAT).
+"""The grid MDP's best mission as an integer linear program.
 
 One episode — a map, a start cell, a budget and the cells already seen — is a unit of flow over
 a time-expanded graph: node (t, c) is "over cell c after t actions", an arc is a move the safety
@@ -20,70 +20,22 @@ pass along a target reveals it once, not once per cell that sees it.
 
 Pruning cuts no mission off: a cell is a node at time t only when it is at most t moves from the
 start, at most ``T − t`` moves from a landing cell, and at the grid's parity (each move changes
-``row + col`` by one); rests keep any parity. Where a known mission (the hint) already sees every
-target the budget can reach, it is optimal by that bound and the solver is not called.
+``row + col`` by one); rests keep any parity. Pairs of targets no mission can both see within the
+budget exclude each other (:func:`_conflicts`).
+
+The model is plain matrices (:class:`EpisodeModel`: 0/1 variables, rows ``lo ≤ A·x ≤ hi``, a
+count to maximize), so any MILP or CP solver takes it as it is (:mod:`.optimal_solver`).
 """
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
-from ortools.sat.python import cp_model
+from scipy.sparse import csr_matrix
 
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import UNREACHABLE, MapGraph
-
-STATUS = {
-    cp_model.OPTIMAL: "optimal",
-    cp_model.FEASIBLE: "feasible",
-    cp_model.INFEASIBLE: "infeasible",
-    cp_model.UNKNOWN: "unknown",
-    cp_model.MODEL_INVALID: "invalid",
-}
-
-
-@dataclass(frozen=True)
-class SolverOptions:
-    """How hard CP-SAT works on one episode."""
-
-    time_limit_s: float = 60.0  # per episode; the best mission found by then is kept, labelled
-    workers: int = 1  # CP-SAT's search workers (threads)
-    seed: int = 0  # CP-SAT's random seed
-
-    def __post_init__(self) -> None:
-        if not np.isfinite(self.time_limit_s) or self.time_limit_s <= 0:
-            raise ValueError(f"time limit must be a positive number, got {self.time_limit_s}")
-        if int(self.workers) != self.workers or self.workers < 1:
-            raise ValueError(f"workers must be an integer >= 1, got {self.workers}")
-
-
-@dataclass
-class Mission:
-    """The answer for one episode.
-
-    ``actions`` end with the landing (empty when ``status`` is ``infeasible`` — no way home within
-    the budget — or ``unknown``: no mission found in time). ``seen``: target cells the mission
-    shows, those seen before included; ``bound``: a proven upper bound on any mission's.
-    """
-
-    actions: np.ndarray
-    seen: int
-    bound: int
-    status: str
-    time_s: float
-
-    @property
-    def optimal(self) -> bool:
-        return self.status == "optimal"
-
-
-def solver_version() -> str:
-    """The OR-Tools release that solved (results name it)."""
-    from ortools import __version__
-
-    return f"OR-Tools CP-SAT {__version__}"
 
 
 def _hover_action(g: MapGraph, cell: int) -> int | None:
@@ -125,72 +77,6 @@ def fly(g: MapGraph, start: int, actions: np.ndarray, seen: np.ndarray) -> tuple
             break
     target = g.grid_map.target.reshape(-1)
     return int((covered & target).sum()), landed
-
-
-def solve_episode(
-    g: MapGraph,
-    start: int,
-    budget: int,
-    seen: np.ndarray | None = None,
-    options: SolverOptions | None = None,
-    hint: np.ndarray | None = None,
-) -> Mission:
-    """The mission showing the most target cells from flat cell ``start`` with ``budget`` units,
-    given the (H·W,) bool cells ``seen`` already (default none: an episode's start).
-
-    ``hint``: a known mission's actions (e.g. beam search's), the solver's first incumbent.
-    """
-    options = options or SolverOptions()
-    began = time.perf_counter()
-    seen = np.zeros(g.num_cells, bool) if seen is None else np.asarray(seen, bool).reshape(-1)
-    already = int((seen & g.grid_map.target.reshape(-1)).sum())
-    if budget < 1 or g.home[start] > budget:
-        return Mission(np.zeros(0, np.int64), already, already, "infeasible", 0.0)
-    bound = reachable_bound(g, start, budget, seen)
-    if budget == 1:  # one unit: the landing, on the start (a landing cell: home[start] is 1)
-        hint = np.array([LAND])
-    known = None  # the hint, when it is a mission of this episode
-    if hint is not None:
-        hint = np.asarray(hint, dtype=np.int64)
-        hint_seen, hint_landed = fly(g, start, hint, seen)
-        if hint_landed and hint.size <= budget:
-            known = Mission(hint, hint_seen, bound, "feasible", 0.0)
-            if hint_seen >= bound:
-                known.status, known.time_s = "optimal", time.perf_counter() - began
-                return known
-    model = _Model(g, start, int(budget) - 1, seen)
-    if hint is not None:
-        model.hint(hint)
-    solver = cp_model.CpSolver()
-    solver.parameters.max_time_in_seconds = float(options.time_limit_s)
-    solver.parameters.num_workers = int(options.workers)
-    solver.parameters.random_seed = int(options.seed)
-    solver.parameters.linearization_level = 2  # measured: the bound closes far more often
-    code = solver.solve(model.model)
-    status = STATUS.get(code, "unknown")
-    elapsed = time.perf_counter() - began
-    if code not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
-        if code == cp_model.INFEASIBLE and known is not None:
-            raise RuntimeError(f"the optimal model refuses a mission the MDP flies ({hint})")
-        if known is not None:  # no solution in time (a large map): the hint, with the bound
-            known.time_s = elapsed
-            return known
-        return Mission(np.zeros(0, np.int64), already, already, status, elapsed)
-    actions = model.actions(solver)
-    flown, landed = fly(g, start, actions, seen)
-    value = already + int(round(solver.objective_value))
-    # a solution that is not proven may leave a target it reveals uncounted: the MDP's count is
-    # the mission's; never fewer than the model's, and the same once proven
-    if not landed or flown < value or (code == cp_model.OPTIMAL and flown != value):
-        raise RuntimeError(
-            f"the optimal model's mission from cell {start} with budget {budget} flies to "
-            f"{flown} targets (landed {landed}), the model says {value}: a modelling error"
-        )
-    proven = max(min(already + int(np.floor(solver.best_objective_bound + 1e-6)), bound), flown)
-    if known is not None and known.seen > flown:  # the solver never got to the hint's mission
-        return Mission(known.actions, known.seen, max(proven, known.seen), "feasible", elapsed)
-    status = "optimal" if flown >= proven else status
-    return Mission(actions, flown, proven, status, elapsed)
 
 
 def _group(keys: np.ndarray) -> dict[int, np.ndarray]:
@@ -239,45 +125,65 @@ def _conflicts(g: MapGraph, start: int, moves: int, targets: np.ndarray) -> np.n
     return np.stack([targets[a], targets[b]], axis=1)
 
 
-class _Model:
-    """The CP-SAT model of one episode and the way back from its solution to actions."""
+@dataclass
+class Rows:
+    """Linear rows ``lo ≤ A·x ≤ hi`` gathered as triplets, then one sparse matrix."""
+
+    rows: list
+    cols: list
+    vals: list
+    lo: list
+    hi: list
+
+    @classmethod
+    def empty(cls) -> Rows:
+        return cls([], [], [], [], [])
+
+    def add(self, cols: np.ndarray, vals: np.ndarray, lo: float, hi: float, count: int = 1,
+            row_of: np.ndarray | None = None) -> None:  # fmt: skip
+        """``count`` rows at once: entry k goes to new row ``row_of[k]`` (default: all to one)."""
+        first = len(self.lo)
+        row_of = np.zeros(len(cols), np.int64) if row_of is None else row_of
+        self.rows.append(first + np.asarray(row_of, np.int64))
+        self.cols.append(np.asarray(cols, np.int64))
+        self.vals.append(np.asarray(vals, np.float64))
+        self.lo.extend([lo] * count)
+        self.hi.extend([hi] * count)
+
+    def matrix(self, num_vars: int) -> csr_matrix:
+        rows = np.concatenate(self.rows) if self.rows else np.zeros(0, np.int64)
+        cols = np.concatenate(self.cols) if self.cols else np.zeros(0, np.int64)
+        vals = np.concatenate(self.vals) if self.vals else np.zeros(0)
+        out = csr_matrix((vals, (rows, cols)), shape=(len(self.lo), num_vars))
+        out.sum_duplicates()
+        return out
+
+
+class EpisodeModel:
+    """One episode as a 0/1 program: maximize ``objective · x`` subject to ``lo ≤ A·x ≤ hi``
+    and ``0 ≤ x ≤ upper``; variables are the arcs, the start's hover (if the start has a rejected
+    action) and one per target the mission may newly see."""
 
     def __init__(self, g: MapGraph, start: int, moves: int, seen: np.ndarray):
         self.g, self.start, self.moves = g, start, moves
-        self.model = model = cp_model.CpModel()
         out, home = _reach(g, start, moves)
         t = np.arange(moves + 1)[:, None]
         moving = (out <= t) & (home <= moves - t) & ((t - out) % 2 == 0)
         resting = (out <= t) & g.grid_map.landing.reshape(1, -1)
         self._arcs(moving, resting)
-        tail, head, at, rest = self.tail, self.head, self.at, self.rest
-        arcs = self.arcs = [model.new_bool_var(f"a{i}") for i in range(tail.size)]
-        cells = g.num_cells
-        into = _group((at + 1) * cells + head)
-        out_of = _group(at * cells + tail)
-        model.add_exactly_one(arcs[i] for i in out_of[start])
-        for node, leaving in out_of.items():
-            if node >= cells:  # flow in = flow out at every node after the start
-                entering = into.get(node, ())
-                model.add(sum(arcs[i] for i in entering) == sum(arcs[i] for i in leaving))
-        for node, entering in into.items():  # only the last layer may end a flow
-            if node not in out_of and node < moves * cells:
-                model.add(sum(arcs[i] for i in entering) == 0)
-        self.rest_at = {(int(at[i]), int(tail[i])): int(i) for i in np.flatnonzero(rest)}
-        for (step, c), i in self.rest_at.items():  # a rest is for good
-            if (step + 1, c) in self.rest_at:
-                model.add_implication(arcs[i], arcs[self.rest_at[step + 1, c]])
+        n_arcs = self.tail.size
         self.hover_action = _hover_action(g, start)
-        self.hover = None
-        if self.hover_action is not None and moves >= 1:
-            self.hover = model.new_bool_var("hover")  # its unit comes off the end
-            model.add_implication(self.hover, self._rests_by(moves - 1))
-        self._targets(seen)
-
-    def _rests_by(self, step: int):
-        done = self.model.new_bool_var(f"rest{step}")
-        self.model.add(sum(self.arcs[i] for (s, _), i in self.rest_at.items() if s == step) == done)
-        return done
+        self.has_hover = self.hover_action is not None and moves >= 1
+        self.hover_var = n_arcs if self.has_hover else -1
+        rows = Rows.empty()
+        self.upper = self._flow(rows)
+        self._targets(seen, rows, n_arcs + int(self.has_hover))
+        self.num_vars = n_arcs + int(self.has_hover) + len(self.new)
+        self.upper = np.concatenate([self.upper, np.ones(self.num_vars - n_arcs)])
+        self.objective = np.zeros(self.num_vars)
+        self.objective[list(self.new.values())] = 1.0
+        self.A = rows.matrix(self.num_vars)
+        self.lo, self.hi = np.array(rows.lo, float), np.array(rows.hi, float)
 
     def _arcs(self, moving: np.ndarray, resting: np.ndarray) -> None:
         nxt, ok = self.g.safety.next_cell, self.g.safety.accepted
@@ -294,10 +200,43 @@ class _Model:
         self.tail = np.concatenate([p[0] for p in parts]).astype(np.int64)
         self.head = np.concatenate([p[1] for p in parts]).astype(np.int64)
         self.at = np.concatenate([np.full(p[0].size, p[2]) for p in parts]).astype(np.int64)
-        self.rest = np.concatenate([np.full(p[0].size, p[3]) for p in parts])
+        self.rest = np.concatenate([np.full(p[0].size, p[3]) for p in parts]).astype(bool)
 
-    def _targets(self, seen: np.ndarray) -> None:
-        g, model, arcs = self.g, self.model, self.arcs
+    def _flow(self, rows: Rows) -> np.ndarray:
+        """One unit leaves the start and is conserved at every later node; only the last layer
+        may end it; a rest is for good; the hover's unit comes off the end. The arcs' upper
+        bounds (0 for an arc into a node nothing leaves before the last layer)."""
+        cells, n = self.g.num_cells, self.tail.size
+        arcs = np.arange(n)
+        tail_node = self.at * cells + self.tail
+        head_node = (self.at + 1) * cells + self.head
+        first = tail_node == self.start  # t = 0: the start is the only node of layer 0
+        rows.add(arcs[first], np.ones(first.sum()), 1.0, 1.0)
+        nodes = np.unique(tail_node[tail_node >= cells])
+        leaving = tail_node >= cells
+        entering = np.isin(head_node, nodes)
+        row_of = np.concatenate([np.searchsorted(nodes, head_node[entering]),
+                                 np.searchsorted(nodes, tail_node[leaving])])  # fmt: skip
+        cols = np.concatenate([arcs[entering], arcs[leaving]])
+        vals = np.concatenate([np.ones(entering.sum()), -np.ones(leaving.sum())])
+        rows.add(cols, vals, 0.0, 0.0, nodes.size, row_of)
+        upper = np.ones(n)
+        upper[~entering & (self.at + 1 < self.moves)] = 0.0
+        rest = np.flatnonzero(self.rest)
+        self.rest_at = {(int(self.at[i]), int(self.tail[i])): int(i) for i in rest}
+        pairs = [(i, self.rest_at[s + 1, c]) for (s, c), i in self.rest_at.items()
+                 if (s + 1, c) in self.rest_at]  # fmt: skip
+        if pairs:  # rest(t, c) <= rest(t + 1, c)
+            pairs = np.array(pairs)
+            rows.add(pairs.reshape(-1), np.tile([1.0, -1.0], len(pairs)), -np.inf, 0.0,
+                     len(pairs), np.repeat(np.arange(len(pairs)), 2))  # fmt: skip
+        if self.has_hover:  # hover <= resting by the last move
+            last = [i for (s, _), i in self.rest_at.items() if s == self.moves - 1]
+            rows.add([self.hover_var, *last], [1.0] + [-1.0] * len(last), -np.inf, 0.0)
+        return upper
+
+    def _targets(self, seen: np.ndarray, rows: Rows, first_var: int) -> None:
+        g = self.g
         unseen_view = g.fov_targets & ~seen[g.fov_cells]
         reveal = unseen_view[self.head]
         later = self.at > 0
@@ -306,22 +245,26 @@ class _Model:
         reveal[later] &= ~(head_view[:, :, None] == tail_view[:, None, :]).any(axis=2)
         reveal[self.rest & later] = False
         arc, slot = np.nonzero(reveal)
-        revealers: dict[int, list] = {
-            q: [arcs[int(arc[j])] for j in js]
-            for q, js in _group(g.fov_cells[self.head[arc], slot]).items()
-        }
-        if self.hover is not None:
-            for q in g.fov_cells[self.start][unseen_view[self.start]]:
-                revealers.setdefault(int(q), []).append(self.hover)
-        self.new = {q: model.new_bool_var(f"s{q}") for q in revealers}
-        for q, var in self.new.items():
-            model.add(var <= sum(revealers[q]))
-        for a, b in _conflicts(g, self.start, self.moves, np.array(sorted(self.new))):
-            model.add_at_most_one(self.new[a], self.new[b])
-        model.maximize(sum(self.new.values()))
+        target = g.fov_cells[self.head[arc], slot]
+        if self.has_hover:
+            hovered = g.fov_cells[self.start][unseen_view[self.start]]
+            arc = np.concatenate([arc, np.full(hovered.size, self.hover_var)])
+            target = np.concatenate([target, hovered])
+        targets = np.unique(target)
+        self.new = {int(q): first_var + k for k, q in enumerate(targets)}
+        index = np.searchsorted(targets, target)  # new[q] <= the arcs revealing q
+        rows.add(np.concatenate([first_var + np.arange(targets.size), arc]),
+                 np.concatenate([np.ones(targets.size), -np.ones(arc.size)]), -np.inf, 0.0,
+                 targets.size, np.concatenate([np.arange(targets.size), index]))  # fmt: skip
+        pairs = _conflicts(g, self.start, self.moves, targets)
+        if pairs.size:
+            cols = first_var + np.searchsorted(targets, pairs).reshape(-1)
+            rows.add(cols, np.ones(cols.size), -np.inf, 1.0, len(pairs),
+                     np.repeat(np.arange(len(pairs)), 2))  # fmt: skip
 
-    def hint(self, actions: np.ndarray) -> None:
-        """Warm start from a known mission: its arcs, its hover, and the targets it shows."""
+    def hint(self, actions: np.ndarray) -> np.ndarray | None:
+        """A known mission as a value of every variable (a solver's first incumbent), or None
+        when it is not a mission of this model (too long, or a hover the model lacks)."""
         g, ok, nxt = self.g, self.g.safety.accepted, self.g.safety.next_cell
         body = actions[:-1] if actions.size and actions[-1] == LAND else actions
         hovered = bool(body.size) and not ok[self.start, body[0]]
@@ -329,8 +272,8 @@ class _Model:
         for a in body[int(hovered) :]:
             if ok[path[-1], a]:
                 path.append(int(nxt[path[-1], a]))
-        if len(path) - 1 + hovered > self.moves or (hovered and self.hover is None):
-            return
+        if len(path) - 1 + hovered > self.moves or (hovered and not self.has_hover):
+            return None
         path += [path[-1]] * (self.moves + 1 - len(path))
         index = {
             k: i
@@ -338,29 +281,25 @@ class _Model:
                 zip(self.at.tolist(), self.tail.tolist(), self.head.tolist(), strict=True)
             )
         }
-        chosen = {index.get((t, path[t], path[t + 1])) for t in range(self.moves)}
+        chosen = [index.get((t, path[t], path[t + 1])) for t in range(self.moves)]
         if None in chosen:
-            return
-        for i, arc in enumerate(self.arcs):
-            self.model.add_hint(arc, i in chosen)
-        if self.hover is not None:
-            self.model.add_hint(self.hover, hovered)
-        shown = set()
+            return None
+        x = np.zeros(self.num_vars)
+        x[chosen] = 1.0
+        if hovered:
+            x[self.hover_var] = 1.0
         for c in {*path[1:], *([self.start] if hovered else [])}:
-            shown.update(g.fov_cells[c][g.fov_targets[c]].tolist())
-        for q, var in self.new.items():
-            self.model.add_hint(var, q in shown)
+            for q in g.fov_cells[c][g.fov_targets[c]].tolist():
+                if q in self.new:
+                    x[self.new[q]] = 1.0
+        return x
 
-    def actions(self, solver: cp_model.CpSolver) -> np.ndarray:
-        """The solution as the MDP's actions: the hover, the moves in time order, the landing."""
-        chosen = np.flatnonzero([solver.boolean_value(a) for a in self.arcs])
+    def actions(self, x: np.ndarray) -> np.ndarray:
+        """A solution as the MDP's actions: the hover, the moves in time order, the landing."""
+        chosen = np.flatnonzero(x[: self.tail.size] > 0.5)
         chosen = chosen[np.argsort(self.at[chosen], kind="stable")]
         flown = chosen[~self.rest[chosen]]
         nxt = self.g.safety.next_cell[self.tail[flown], :LAND]
         moves = (nxt == self.head[flown][:, None]).argmax(axis=1)
-        hover = (
-            [self.hover_action]
-            if self.hover is not None and solver.boolean_value(self.hover)
-            else []
-        )
+        hover = [self.hover_action] if self.has_hover and x[self.hover_var] > 0.5 else []
         return np.array([*hover, *moves.tolist(), LAND], dtype=np.int64)

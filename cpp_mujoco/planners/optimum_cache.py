@@ -81,12 +81,17 @@ class OptimumCache:
     def get(self, start: tuple[int, int], budget: int) -> dict[str, Any] | None:
         return self.entries.get(episode_key(start, budget))
 
-    def usable(self, start: tuple[int, int], budget: int, time_limit_s: float) -> bool:
-        """Known and not worth solving again: proven, or solved with at least this time limit."""
+    def usable(self, start: tuple[int, int], budget: int, options) -> bool:
+        """Known and not worth solving again: proven, or solved by the solver of ``options``
+        (:class:`~.optimal_solver.SolverOptions`) with at least its time limit."""
+        from cpp_mujoco.planners.optimal_solver import solver_version
+
         entry = self.get(start, budget)
         return entry is not None and (
-            entry["status"] in ("optimal", "infeasible") or entry["time_limit_s"] >= time_limit_s
-        )
+            entry["status"] in ("optimal", "infeasible")
+            or (entry["time_limit_s"] >= options.time_limit_s
+                and entry["solver"].split()[0] == solver_version(options.solver).split()[0])
+        )  # fmt: skip
 
     def put(self, start: tuple[int, int], budget: int, mission, time_limit_s: float,
             workers: int, solver: str) -> None:  # fmt: skip
