@@ -16,7 +16,7 @@ from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.planners.optimal import beam_missions, solve_episodes
-from cpp_mujoco.planners.optimal_model import fly
+from cpp_mujoco.planners.optimal_model import EpisodeModel, fly
 from cpp_mujoco.planners.optimal_solver import SolverOptions, solve_episode
 from cpp_mujoco.planners.optimum_cache import CacheError, OptimumCache
 from cpp_mujoco.protocol_optimum import default_folder
@@ -245,3 +245,20 @@ def test_the_command_line_flies_the_optimal_planner_beside_the_others(tmp_path, 
     with pytest.raises(SystemExit) as bad:
         main(["optimum", "--map", "C", "--time-limit", "nan"])
     assert bad.value.code == 2
+
+
+def test_a_known_mission_is_a_point_of_the_model():
+    # the warm start must satisfy every row, or the solver drops it
+    grid_map = small_map()
+    g = build_graph(grid_map)
+    cells = np.flatnonzero(grid_map.landing.reshape(-1))
+    budgets = np.full(cells.size, 9)
+    for cell, actions in zip(cells, beam_missions(grid_map, cells, budgets), strict=True):
+        model = EpisodeModel(g, int(cell), 8, np.zeros(g.num_cells, bool))
+        x = model.hint(actions)
+        assert x is not None
+        ax = model.A @ x
+        assert ((ax >= model.lo - 1e-9) & (ax <= model.hi + 1e-9)).all()
+        assert (x <= model.upper).all() and model.objective @ x == fly(
+            g, int(cell), actions, np.zeros(25, bool)
+        )[0]

@@ -125,6 +125,10 @@ def _conflicts(g: MapGraph, start: int, moves: int, targets: np.ndarray) -> np.n
     return np.stack([targets[a], targets[b]], axis=1)
 
 
+# the half-planes' inward normals (row, col): the axes and the diagonals
+_DIRECTIONS = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1))
+
+
 @dataclass
 class Rows:
     """Linear rows ``lo ≤ A·x ≤ hi`` gathered as triplets, then one sparse matrix."""
@@ -180,6 +184,9 @@ class EpisodeModel:
         self._targets(seen, rows, n_arcs + int(self.has_hover))
         self.num_vars = n_arcs + int(self.has_hover) + len(self.new)
         self.upper = np.concatenate([self.upper, np.ones(self.num_vars - n_arcs)])
+        planes = self._half_planes(rows, self.num_vars)
+        self.num_vars += planes
+        self.upper = np.concatenate([self.upper, np.full(planes, float(moves))])
         self.objective = np.zeros(self.num_vars)
         self.objective[list(self.new.values())] = 1.0
         self.A = rows.matrix(self.num_vars)
@@ -251,6 +258,15 @@ class EpisodeModel:
             arc = np.concatenate([arc, np.full(hovered.size, self.hover_var)])
             target = np.concatenate([target, hovered])
         targets = np.unique(target)
+        self._reveal_heads = {
+            int(q): np.unique(self.head[arc[(target == q) & (arc < self.tail.size)]])
+            for q in targets
+        }
+        self._reveal_heads = {
+            q: h
+            for q, h in self._reveal_heads.items()
+            if h.size and not (self.has_hover and q in hovered)
+        }
         self.new = {int(q): first_var + k for k, q in enumerate(targets)}
         index = np.searchsorted(targets, target)  # new[q] <= the arcs revealing q
         rows.add(np.concatenate([first_var + np.arange(targets.size), arc]),
@@ -261,6 +277,41 @@ class EpisodeModel:
             cols = first_var + np.searchsorted(targets, pairs).reshape(-1)
             rows.add(cols, np.ones(cols.size), -np.inf, 1.0, len(pairs),
                      np.repeat(np.arange(len(pairs)), 2))  # fmt: skip
+
+    def _half_planes(self, rows: Rows, first_var: int) -> int:
+        """A target is seen only if the mission enters every half-plane that holds all the
+        cells revealing it and not the start: ``new[q] <= entries(H)``, one count per plane."""
+        g = self.g
+        width = g.grid_map.shape[1]
+        flown = np.flatnonzero(~self.rest)
+        tr, tc = np.divmod(self.tail[flown], width)
+        hr, hc = np.divmod(self.head[flown], width)
+        sr, sc = divmod(self.start, width)
+        heads = self._reveal_heads
+        planes: dict = {}
+        self._plane_arcs: dict[int, np.ndarray] = {}
+        for k, (dr, dc) in enumerate(_DIRECTIONS):
+            head_p, tail_p = dr * hr + dc * hc, dr * tr + dc * tc
+            start_p = dr * sr + dc * sc
+            for q, cells in heads.items():
+                r, c = np.divmod(cells, width)
+                edge = int((dr * r + dc * c).min())
+                if start_p >= edge:
+                    continue
+                key = (k, edge)
+                if key not in planes:
+                    var = first_var + len(planes)
+                    crossing = flown[(tail_p < edge) & (head_p >= edge)]
+                    planes[key] = var
+                    self._plane_arcs[var] = crossing
+                    rows.add(
+                        np.concatenate([[var], crossing]),
+                        np.concatenate([[1.0], -np.ones(crossing.size)]),
+                        0.0,
+                        0.0,
+                    )
+                rows.add([self.new[q], planes[key]], [1.0, -1.0], -np.inf, 0.0)
+        return len(planes)
 
     def hint(self, actions: np.ndarray) -> np.ndarray | None:
         """A known mission as a value of every variable (a solver's first incumbent), or None
@@ -292,6 +343,8 @@ class EpisodeModel:
             for q in g.fov_cells[c][g.fov_targets[c]].tolist():
                 if q in self.new:
                     x[self.new[q]] = 1.0
+        for var, crossing in self._plane_arcs.items():
+            x[var] = x[crossing].sum()
         return x
 
     def actions(self, x: np.ndarray) -> np.ndarray:

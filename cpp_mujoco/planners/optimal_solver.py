@@ -214,7 +214,7 @@ def solve_episode(
     proven = bound
     if answer.x is None:
         if known is not None:  # no solution in time (a large map): the hint, with the bound
-            return Mission(known.actions, known.seen, max(proven, known.seen), "feasible", elapsed)
+            return _labelled(known.actions, known.seen, proven, elapsed)
         return Mission(np.zeros(0, np.int64), already, already, answer.status, elapsed)
     actions = model.actions(answer.x)
     flown, landed = fly(g, start, actions, seen)
@@ -228,6 +228,11 @@ def solve_episode(
         )
     proven = max(proven, flown)
     if known is not None and known.seen > flown:  # the solver never got to the hint's mission
-        return Mission(known.actions, known.seen, max(proven, known.seen), "feasible", elapsed)
-    status = "optimal" if flown >= proven else answer.status
-    return Mission(actions, flown, proven, status, elapsed)
+        return _labelled(known.actions, known.seen, proven, elapsed)
+    return _labelled(actions, flown, proven, elapsed)
+
+
+def _labelled(actions: np.ndarray, seen: int, bound: int, elapsed: float) -> Mission:
+    """A mission with its bound: optimal exactly when it sees as many targets as the bound."""
+    bound = max(bound, seen)
+    return Mission(actions, seen, bound, "optimal" if seen >= bound else "feasible", elapsed)
