@@ -90,6 +90,8 @@ def render(data: dict) -> str:
         "best missions', in points, over the same episodes. Written by "
         "`python scripts/optimum_report.py` from `results/optimum_abc.json`."
     )
+    lines.append("")
+    lines.extend(proven_share(name) for name in by_map)
     if data.get("physics"):
         lines.append("")
     for row in data.get("physics", []):
@@ -104,6 +106,38 @@ def render(data: dict) -> str:
             "violations."
         )
     return "\n".join(lines)
+
+
+def proven_share(name: str) -> str:
+    """One map's cache in a line: how many episodes each solver proved at which time limit, how
+    many are open and how far, the median and the slowest solve (read from the committed cache,
+    so the line is the file's)."""
+    import numpy as np
+
+    from cpp_mujoco.maps import load_map
+    from cpp_mujoco.planners.optimum_cache import OptimumCache
+    from cpp_mujoco.protocol_optimum import default_folder
+
+    entries = OptimumCache(default_folder(), load_map(name)).entries
+    proven: dict[str, int] = {}
+    for e in entries.values():
+        if e["status"] == "optimal":
+            by = f"{e['solver']} ({e['time_limit_s']:g} s limit)"
+            proven[by] = proven.get(by, 0) + 1
+    open_gaps = [e["bound"] - e["seen"] for e in entries.values() if e["status"] != "optimal"]
+    times = np.array([e["time_s"] for e in entries.values()])
+    slowest = max((e["time_s"], k) for k, e in entries.items() if e["status"] == "optimal")
+    row, col, budget = slowest[1].split(",")
+    text = f"- map {name}, {len(entries)} episodes: proven " + ", ".join(
+        f"{n} by {by}" for by, n in sorted(proven.items(), key=lambda kv: -kv[1])
+    )
+    if open_gaps:
+        text += (f"; not proven {len(open_gaps)} (the best mission {min(open_gaps)}–"
+                 f"{max(open_gaps)} targets under the bound)")  # fmt: skip
+    return text + (
+        f"; solve time median {np.median(times):.1f} s, slowest proven {slowest[0]:.1f} s "
+        f"(start ({row}, {col}), {budget} units)."
+    )
 
 
 def with_table(doc: Path, text: str, table: str) -> str:

@@ -95,9 +95,10 @@ def run(args) -> dict:
             k = next(i for i, m in enumerate(maps) if m is grid_map)
             caches[k].put(s, b, mission, options.time_limit_s, options.workers, solver)
             caches[k].save()
-    best, bound, status = [], [], []
+    best, bound, status, solvers = [], [], [], {}
     for k, start, budget in sample:
         entry = caches[k].get(start, budget)
+        solvers[entry["solver"]] = solvers.get(entry["solver"], 0) + 1
         targets = maps[k].target.sum()
         best.append(entry["seen"] / targets)
         bound.append(entry["bound"] / targets)
@@ -111,6 +112,7 @@ def run(args) -> dict:
         ],
         "seed": args.seed,
         "solver": solver_version(options.solver),
+        "solvers": dict(sorted(solvers.items())),  # which solver's mission each episode keeps
         "time_limit_s": args.time_limit,
         "statuses": {s: status.count(s) for s in sorted(set(status))},
         "best_found": float(best_a.mean()),
@@ -147,10 +149,18 @@ def render(data: dict) -> str:
     lines += [
         "",
         f"{data['map_set']}: {n} episodes drawn uniformly over its protocol (seed "
-        f"{data['seed']}), {data['solver']}, {data['time_limit_s']:g} s per episode on one core. "
+        f"{data['seed']}), {solved_by(data)}, {data['time_limit_s']:g} s per episode on one core. "
         f"Written by `python scripts/optimum_sample.py --map-set {data['map_set']} --render`.",
     ]
     return "\n".join(lines)
+
+
+def solved_by(data: dict) -> str:
+    """The solver, or each solver with its share where the episodes were solved by several."""
+    solvers = data.get("solvers") or {data["solver"]: len(data["episodes"])}
+    if len(solvers) == 1:
+        return next(iter(solvers))
+    return "solved by " + " and ".join(f"{name} ({n})" for name, n in solvers.items())
 
 
 def markers(name: str) -> tuple[str, str]:
