@@ -22,6 +22,7 @@ import copy
 
 import mujoco
 import numpy as np
+from numba import njit
 
 CLEARANCE = 0.1  # m, kept between the drone's lowest reach and the ground on top of the fall
 MAX_DOWN_ACCELERATION = 4 * 9.81  # m/s², above any the airframe can reach (thrust ≤ 2.2 g)
@@ -79,20 +80,45 @@ class AirborneSteps:
 
     def clear(self, drones: np.ndarray, nstep: int) -> np.ndarray:
         """Whether each of ``drones`` stays clear of the ground for ``nstep`` substeps."""
-        t = nstep * self.dt
-        pos, vel = self.pos[drones], self.vel[drones]
-        sink = np.maximum(-vel[:, 2], 0.0)
-        with np.errstate(invalid="ignore"):
-            sane = (np.abs(vel).max(1) < MAX_RATE) & (np.abs(pos).max(1) < MAX_DISTANCE)
-            low = self.floor + sink * t + 0.5 * MAX_DOWN_ACCELERATION * t * t
-            return sane & (pos[:, 2] > low)
+        out = np.empty(len(drones), dtype=bool)
+        clear_of_ground(np.asarray(drones, np.int64), self.pos, self.vel, self.floor,
+                        nstep * self.dt, out)  # fmt: skip
+        return out
 
     def before_step(self, drones: np.ndarray, nstep: int) -> None:
         """Set the models of ``drones`` for their next ``nstep`` substeps (one C call to the
         batch, and only when some drone changes side)."""
         clear = self.clear(drones, nstep)
-        if np.array_equal(clear, self.airborne[drones]):
+        if not changed(np.asarray(drones, np.int64), clear, self.airborne):
             return
-        self.airborne[drones] = clear
         ground, air = self.models
         self.sims.set_models([air if a else ground for a in self.airborne.tolist()])
+
+
+@njit(cache=True)
+def clear_of_ground(drones, pos, vel, floor, t, out):
+    """:meth:`AirborneSteps.clear` into ``out``: sane, and above the floor after a fall of
+    ``t`` seconds at the sink rate plus the largest downward acceleration."""
+    for j in range(drones.size):
+        d = drones[j]
+        sane = True
+        for k in range(6):
+            if not abs(vel[d, k]) < MAX_RATE:
+                sane = False
+        for k in range(3):
+            if not abs(pos[d, k]) < MAX_DISTANCE:
+                sane = False
+        sink = max(-vel[d, 2], 0.0)
+        low = floor + sink * t + 0.5 * MAX_DOWN_ACCELERATION * t * t
+        out[j] = sane and pos[d, 2] > low
+
+
+@njit(cache=True)
+def changed(drones, clear, airborne) -> bool:
+    """Write ``clear`` into ``airborne[drones]``; whether any entry changed."""
+    moved = False
+    for j in range(drones.size):
+        if airborne[drones[j]] != clear[j]:
+            airborne[drones[j]] = clear[j]
+            moved = True
+    return moved

@@ -58,7 +58,7 @@ class BatchedFlight:
     """``n`` drones over one map and model. ``coverage``: the (n, H·W) bool rows the cameras
     mark (the env passes its MDP's); ``threads``: how many threads step the physics (the
     caller's included); ``tick``: the control tick's arithmetic, ``"numpy"``, ``"compiled"``
-    (numba, the ``fast`` extra) or ``"auto"`` (compiled where numba imports; None reads
+    (numba) or ``"auto"`` (compiled where numba imports; None reads
     ``CPP_MUJOCO_TICK``, default auto), :attr:`tick` the one chosen — both fly the same
     doubles; ``air_steps``: drones clear of the ground step without contacts (the same doubles,
     cheaper). The batch steps a copy of ``model``, made here."""

@@ -1,4 +1,4 @@
-"""The batched flight's control tick as two numba kernels (the ``fast`` extra).
+"""The batched flight's control tick as two numba kernels .
 
 Why: the numpy tick (:mod:`~cpp_mujoco.physics.batched_control`,
 :mod:`~cpp_mujoco.physics.batched_power`) is ≈ 150 numpy calls per tick, each microseconds of

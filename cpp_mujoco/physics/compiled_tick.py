@@ -4,8 +4,7 @@ kernels of :mod:`~cpp_mujoco.physics.compiled_control` and
 
 Why: at 128 drones the numpy tick costs about half as long as MuJoCo's five physics steps
 between ticks; compiled, it is three calls (sense, control, power) that cost a few percent of
-them. numba is an optional extra (``pip install -e .[fast]``): without it the numpy tick flies,
-the same doubles.
+them. numba is a dependency; the numpy tick (``tick="numpy"``) flies the same doubles.
 
 The kernels flag what stays in Python, drone by drone and rarely: the failure messages, the
 camera frames due, the ground contacts and time limits of landing or falling drones, the
@@ -49,7 +48,7 @@ def resolve_tick(tick: str | None = None) -> str:
     except ImportError:
         if tick == "compiled":
             raise ImportError(
-                "tick='compiled' needs numba: install the fast extra (pip install -e .[fast]), "
+                "tick='compiled' needs numba, a dependency of cpp_mujoco: reinstall the package, "
                 "or fly tick='numpy'"
             ) from None
         return "numpy"
