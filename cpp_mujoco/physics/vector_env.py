@@ -43,8 +43,9 @@ class MuJoCoVectorEnv(GridVectorEnv):
     env (degrees, as ``wind_direction``) for a batch that flies one weather from several
     directions — env i flies (and observes) what a single env with ``wind_direction`` =
     ``wind_directions[i]`` does; ``physics_config`` then records only the first. ``tick``:
-    the control tick's arithmetic, ``"auto"`` (compiled where numba imports), ``"compiled"`` or ``"numpy"`` (None: ``CPP_MUJOCO_TICK``, else auto); both fly the
-    same doubles (:class:`~cpp_mujoco.physics.batched_flight.BatchedFlight`)."""
+    the control tick's arithmetic, ``"auto"`` (compiled where numba imports), ``"compiled"``
+    or ``"numpy"`` (None: ``CPP_MUJOCO_TICK``, else auto); both fly the same doubles
+    (:class:`~cpp_mujoco.physics.batched_flight.BatchedFlight`)."""
 
     def __init__(
         self,
