@@ -1,6 +1,6 @@
-"""Every path flies the flights recorded before the physics implementations were merged into
-one (:mod:`tests.flight_fixtures`): the single env, the vector env's numpy tick and its numba
-tick, to 1e-9 relative; integers, flags, crash reasons and outcomes exactly."""
+"""The flights recorded before the physics implementations were merged into one
+(:mod:`tests.flight_fixtures`: the single env, the vector env's numpy tick and its numba tick)
+fly again, to 1e-9 relative; integers, flags, crash reasons and outcomes exactly."""
 
 from __future__ import annotations
 
@@ -34,8 +34,6 @@ def test_the_fixtures_hold_every_case_and_path(recorded):
 @pytest.mark.parametrize("name", list(_CASES))
 def test_the_recorded_flights_fly_again(recorded, name: str, path: str):
     """Pose, observation, reward, flags and every info number after every step, as recorded."""
-    if path == "compiled":
-        pytest.importorskip("numba")
     compare(recorded[1][f"{name}.{path}"], fly(_CASES[name], path), f"{name} ({path})")
 
 

@@ -1,6 +1,6 @@
 """What a batch of drones is flying: the kinds of macro-action, per drone the action's running
 state (what :meth:`Flight._fly` keeps in locals), and the failed state checks of a tick — shared
-by the numpy tick (:mod:`~.batched_flight`) and the compiled one (:mod:`~.compiled_tick`)."""
+by the flight (:mod:`~.batched_flight`) and its compiled tick (:mod:`~.compiled_tick`)."""
 
 from __future__ import annotations
 

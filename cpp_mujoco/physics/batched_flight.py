@@ -3,8 +3,8 @@
 Why this shape: a single :class:`~cpp_mujoco.physics.flight.Flight` spends about as long in its
 Python control tick as MuJoCo spends on the five physics steps between ticks. Here the tick's
 work (references, controller, energy, battery, wind, drag, failure checks) is done once for all
-drones, as arrays (:mod:`~.batched_control`, :mod:`~.batched_power`) or compiled loops
-(:mod:`~.compiled_tick`), and the physics of all drones is one call of
+drones, in three compiled kernels (:mod:`~.compiled_tick`) over the state arrays of
+:mod:`~.batched_control` and :mod:`~.batched_power`, and the physics of all drones is one call of
 ``mujoco.batch.Batch.step`` (MuJoCo ≥ 3.17): C loops over the drones on ``threads`` threads
 without the GIL. The batch is *persistent*: each drone keeps its own ``MjData`` inside it, and its
 state row (:attr:`BatchedFlight.state`, ``mjSTATE_INTEGRATION``) carries the solver's warmstart
@@ -31,18 +31,12 @@ from mujoco.batch import Batch
 
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.airborne import AirborneSteps
-from cpp_mujoco.physics.batched_action import FAILURES, HOVER, LAND, MOVE, MacroActions
+from cpp_mujoco.physics.batched_action import HOVER, LAND, MOVE, MacroActions
 from cpp_mujoco.physics.batched_camera import BatchedCamera
-from cpp_mujoco.physics.batched_control import (
-    BatchedController,
-    References,
-    air_in_body,
-    drag_force,
-    quat_to_mat,
-)
+from cpp_mujoco.physics.batched_control import BatchedController, References
 from cpp_mujoco.physics.batched_power import BatchedBattery, BatchedEnergy, BatchedWind
 from cpp_mujoco.physics.battery import CUTOFF
-from cpp_mujoco.physics.compiled_tick import choose_tick
+from cpp_mujoco.physics.compiled_tick import CompiledTick
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import EMERGENCY_LANDING, Flight, ground_contact
 
@@ -57,11 +51,8 @@ def _column(model: mujoco.MjModel, component: mujoco.mjtState) -> int:
 class BatchedFlight:
     """``n`` drones over one map and model. ``coverage``: the (n, H·W) bool rows the cameras
     mark (the env passes its MDP's); ``threads``: how many threads step the physics (the
-    caller's included); ``tick``: the control tick's arithmetic, ``"numpy"``, ``"compiled"``
-    (numba) or ``"auto"`` (compiled where numba imports; None reads
-    ``CPP_MUJOCO_TICK``, default auto), :attr:`tick` the one chosen — both fly the same
-    doubles; ``air_steps``: drones clear of the ground step without contacts (the same doubles,
-    cheaper). The batch steps a copy of ``model``, made here."""
+    caller's included); ``air_steps``: drones clear of the ground step without contacts (the
+    same doubles, cheaper). The batch steps a copy of ``model``, made here."""
 
     def __init__(
         self,
@@ -71,7 +62,6 @@ class BatchedFlight:
         n: int,
         coverage: np.ndarray,
         threads: int = 1,
-        tick: str | None = None,
         air_steps: bool = True,
     ):
         # the single flight holds every constant (parameters, tolerances, geometry, the scalar
@@ -118,8 +108,7 @@ class BatchedFlight:
         self.nfz_violations = np.zeros(n, dtype=np.int64)
         self.max_track_error = np.zeros(n)
         self.no_fly = np.asarray(grid_map.nfz, dtype=bool).reshape(-1)
-        self._compiled = choose_tick(self, tick)  # None: the numpy tick
-        self.tick = "numpy" if self._compiled is None else "compiled"
+        self._tick = CompiledTick(self)
 
     def close(self) -> None:
         """Nothing to release: the batch's threads idle without CPU and go with the object."""
@@ -242,74 +231,12 @@ class BatchedFlight:
     def _loop(self, a: MacroActions) -> None:
         """The tick loop of :meth:`Flight._fly` over the drones still flying: one control tick
         for all of them (:meth:`_tick`), then their physics steps (one C call)."""
-        k, dt = self.k, self.dt
-        tick = self._tick if self._compiled is None else self._compiled
+        k, dt, tick = self.k, self.dt, self._tick
         while np.count_nonzero(a.flying):
             go = tick(np.flatnonzero(a.flying), a)
             if go.size:
                 self._step(go, k)
                 a.t[go] += dt
-
-    def _tick(self, i: np.ndarray, a: MacroActions) -> np.ndarray:
-        """One control tick of drones ``i``: failure checks, camera, done checks, then the
-        inputs of those that fly on (returned: they step next)."""
-        res, t, t0, goal, worst2 = a.res, a.t, a.t0, a.goal, a.worst2
-        c, one, k = self.config, self.one, self.k
-        qcols, vcols, acols = self.cols
-        bx, by, bz = one.bounds
-        geo = one.geo
-        inv = 1.0 / geo.cell_size
-        pos_tol2, vel_tol2 = c.arrive_pos_tol**2, c.arrive_vel_tol**2
-        max_err2 = c.max_tracking_error**2
-        st = self.state[i]
-        qp, qv, act = st[:, qcols], st[:, vcols], st[:, acols]
-        pos, vel = qp[:, :3], qv[:, :3]
-        R = quat_to_mat(qp[:, 3:])
-        on = self.motors_on[i]
-        # ---- failure checks on the current state
-        broken = ~np.isfinite(qp.sum(1)) | (self._bad[i] != self._bad0[i])
-        out = (np.abs(pos[:, 0]) > bx) | (np.abs(pos[:, 1]) > by) | (pos[:, 2] > bz)
-        flipped = (R[:, 8] < one.cos_flip) & on
-        failed = broken | out | flipped
-        with np.errstate(invalid="ignore"):
-            row = np.floor(geo.height / 2 - pos[:, 1] * inv)
-            col = np.floor(pos[:, 0] * inv + geo.width / 2)
-        inside = (row >= 0) & (row < geo.height) & (col >= 0) & (col < geo.width)
-        cell = np.where(inside, row * geo.width + col, 0).astype(np.int64)
-        self.nfz_violations[i] += k * (~inside | self.no_fly[cell])
-        p_ref, v_ref, a_ref = self.refs(i, t[i])
-        e = pos - p_ref
-        track = ~failed & on
-        off2 = e[:, 0] * e[:, 0] + e[:, 1] * e[:, 1]
-        worst2[i] = np.where(track & (off2 > worst2[i]), off2, worst2[i])
-        diverged = track & (off2 + e[:, 2] * e[:, 2] > max_err2)
-        ended = failed | diverged
-        for j in np.flatnonzero(ended).tolist():  # in the single flight's order of checks
-            kind = 0 if broken[j] else 1 if out[j] else 2 if flipped[j] else 3
-            res["failure"][i[j]] = FAILURES[kind]
-        # ---- camera frames due, then: is the action done?
-        due = ~ended & (t0[i] + t[i] >= self.camera.next_frame[i])
-        if np.count_nonzero(due):
-            res["newly_seen"][i[due]] += self.camera.capture(i[due])
-        ti = t[i]
-        for j in np.flatnonzero(~ended & (~on | a.land[i])).tolist():
-            ended[j] = self._landing_done(int(i[j]), a)
-        cruise = ~ended & on & ~a.land[i] & (ti >= a.nominal[i])
-        if np.count_nonzero(cruise):
-            g = pos - goal[i]
-            near = (g * g).sum(1) < pos_tol2
-            slow = (vel * vel).sum(1) < vel_tol2
-            got = cruise & a.arrive[i] & near & slow
-            res["arrived"][i[got]] = True
-            ended |= got | (cruise & (ti >= a.limit[i] - 1e-9))
-        a.flying[i[ended]] = False
-        keep = ~ended
-        if not np.count_nonzero(keep):
-            return i[keep]
-        go = i[keep]
-        self._control(go, pos[keep], vel[keep], R[keep], qv[keep, 3:], act[keep], p_ref[keep],
-                      v_ref[keep], a_ref[keep], a)  # fmt: skip
-        return go
 
     def _landing_done(self, d: int, a: MacroActions) -> bool:
         """Whether landing or falling drone ``d``'s action ends (contact, time limit)."""
@@ -343,40 +270,3 @@ class BatchedFlight:
         end = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z + 0.3)], 1)
         self.refs.set(d, p, end, np.full(len(d), c.land_duration), True)
         a.goal[d] = np.stack([p[:, 0], p[:, 1], np.full(len(d), one.touch_z)], 1)
-
-    def _control(self, i, pos, vel, R, omega, act, p_ref, v_ref, a_ref, a: MacroActions) -> None:
-        """Wind, control, energy, battery and drag of one tick: the drones' inputs (ctrl and drag
-        force, written into their state rows for the next step)."""
-        dt, t, emergency = self.dt, a.t, a.emergency
-        w = self.wind.velocity(i, pos, dt)  # every tick: the gusts advance for every drone
-        f = np.zeros((i.size, 4))
-        on = self.motors_on[i]
-        n_on = np.count_nonzero(on)
-        if n_on:
-            if n_on == len(on):  # the common case: views instead of copies
-                on = slice(None)
-            j = i[on]
-            self.controller.observe(j, vel[on], R[on], act[on], dt)
-            f_on = self.controller(j, pos[on], vel[on], R[on], omega[on], p_ref[on],
-                                   v_ref[on], a_ref[on], dt)  # fmt: skip
-            air = air_in_body(vel[on], w[on], R[on]) if self.energy_of.ff is not None else None
-            drawn = self.battery.draw(j, self.energy_of(act[on], f_on, air) / dt, dt)
-            cut = np.isnan(drawn)
-            # the pack cannot carry the load: the motors stop, a fall begins
-            if np.count_nonzero(cut):
-                self.motors_on[j[cut]] = False
-                self.battery.current[j[cut]] = 0.0
-                f_on[cut] = 0.0
-                t[j[cut]] = 0.0  # the fall gets its own time limit
-                self.energy_used[j[~cut]] += drawn[~cut]
-            else:
-                self.energy_used[j] += drawn
-            f[on] = f_on
-            fail = (
-                ~cut & ~a.begun_landing[j] & (emergency[j] == None)  # noqa: E711
-                & (self.battery.below_cutoff[j] | (self.energy_used[j] >= self.capacity[j]))
-            )  # fmt: skip
-            if np.count_nonzero(fail):  # the battery failsafe: land where it is, on the reserve
-                self._failsafe(j[fail], pos[on][fail], a)
-        self.state[i, self.ctrl_cols] = f
-        self.state[i, self.force_cols] = drag_force(self.one.drag.half_rho_cda, vel, w)

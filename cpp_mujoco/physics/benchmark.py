@@ -75,15 +75,11 @@ def benchmark_batched(
     ``num_envs`` drones (1 and 2 stepping threads), and raw ``mj_step`` of the same model, side
     by side in one process; random moves with 2 % landings, budget 75, new episodes as they end.
     Each rate is the best of two rounds (the machine is shared: the best is the least disturbed).
-    ``batched_*`` fly the default control tick (``tick``: compiled where numba is installed);
-    ``batched_numpy_*`` and ``batched_compiled_*`` each tick on 1 thread, side by side (the
-    default's figures are the same run). The batched env steps airborne drones on a model
+    The batched env steps airborne drones on a model
     without contacts (:mod:`~cpp_mujoco.physics.airborne`): ``batched_full_model_*`` flies it
     with every step on the full model, and ``*_physics_ratio_vs_air`` divides by raw
     ``mj_step`` of that contact-free model instead (the ratios the issue's 0.8 cannot flatter)."""
     import gymnasium as gym
-
-    from cpp_mujoco.physics.compiled_tick import resolve_tick
 
     rng = np.random.default_rng(seed)
     single = MuJoCoEnv(map=map)
@@ -105,10 +101,8 @@ def benchmark_batched(
         wall = time.perf_counter() - start
         return acts / wall, sim / timestep / wall
 
-    def run_batched(threads: int, tick: str | None = None, air: bool = True) -> tuple:
-        env = gym.make_vec(
-            "cpp_mujoco/MuJoCo-v0", num_envs=num_envs, map=map, threads=threads, tick=tick
-        )
+    def run_batched(threads: int, air: bool = True) -> tuple:
+        env = gym.make_vec("cpp_mujoco/MuJoCo-v0", num_envs=num_envs, map=map, threads=threads)
         if not air:
             env.flight.air = None
         env.reset(seed=seed, options={"budget": np.full(num_envs, 75)})
@@ -135,14 +129,10 @@ def benchmark_batched(
             n += 1000
         return n / (time.perf_counter() - start)
 
-    tick = resolve_tick()  # the default
-    other = "numpy" if tick == "compiled" else None  # the ticks besides the default: numba's
     kinds = [("single", run_single), ("batched_1", lambda: run_batched(1)),
              ("batched_2", lambda: run_batched(2)), ("raw", run_raw),
              ("batched_full_model", lambda: run_batched(1, air=False)),
              ("raw_air", lambda: run_raw(air=True))]  # fmt: skip
-    if other:
-        kinds.insert(2, ("batched_other", lambda: run_batched(1, other)))
     best: dict[str, tuple] = {}
     for _ in range(2):  # interleaved rounds: a disturbance hits every kind alike
         for name, fn in kinds:
@@ -156,18 +146,8 @@ def benchmark_batched(
         best["batched_2"],
         best["raw"],
     )
-    ticks = {tick: (b1a, b1s)}
-    if other:
-        ticks[other] = best["batched_other"]
-    per_tick = {}
-    for name, (acts, steps) in ticks.items():
-        per_tick[f"batched_{name}_actions_per_s"] = acts
-        per_tick[f"batched_{name}_physics_ratio"] = steps / raw
-    if len(ticks) == 2:
-        per_tick["compiled_vs_numpy_actions"] = ticks["compiled"][0] / ticks["numpy"][0]
     return {
         "num_envs": num_envs,
-        "tick": tick,
         "single_actions_per_s": sa,
         "batched_actions_per_s": b1a,
         "batched_2_threads_actions_per_s": b2a,
@@ -182,7 +162,6 @@ def benchmark_batched(
         "batched_full_model_actions_per_s": best["batched_full_model"][0],
         "batched_full_model_physics_ratio": best["batched_full_model"][1] / raw,
         "air_steps_speedup": b1a / best["batched_full_model"][0],
-        **per_tick,
     }
 
 

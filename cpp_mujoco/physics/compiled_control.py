@@ -1,15 +1,15 @@
-"""The batched flight's control tick as two numba kernels .
+"""The batched flight's control tick as two numba kernels.
 
-Why: the numpy tick (:mod:`~cpp_mujoco.physics.batched_control`,
-:mod:`~cpp_mujoco.physics.batched_power`) is ≈ 150 numpy calls per tick, each microseconds of
-dispatch over a short array. Compiled, the same per-drone arithmetic is a loop over plain
-doubles in two calls: :func:`sense` (rotation, failure checks, no-fly count, reference,
-tracking, camera and done checks) and :func:`control` (wind, observer, controller, mixer,
-drag; then :func:`~cpp_mujoco.physics.compiled_power.power`: energy, battery). Every expression
-keeps the order of its scalar twin, as the numpy twin does, without fastmath: the same doubles
-(exp, log, hypot are the C library's, as numpy's are). The kernels work on the numpy twins'
-state arrays; what needs Python is flagged in ``code`` for
-:mod:`~cpp_mujoco.physics.compiled_tick`. Constants come in arguments, none from another
+Why: as numpy, a tick is ≈ 150 calls, each microseconds of dispatch over a short array.
+Compiled, the per-drone arithmetic is a loop over plain doubles in two calls: :func:`sense`
+(rotation, failure checks, no-fly count, reference, tracking, camera and done checks) and
+:func:`control` (wind, observer, controller, mixer, drag; then
+:func:`~cpp_mujoco.physics.compiled_power.power`: energy, battery). Every expression keeps the
+order of its scalar model, without fastmath (exp, log, hypot are the C library's). The kernels
+work on the state arrays of :mod:`~cpp_mujoco.physics.batched_control` and
+:mod:`~cpp_mujoco.physics.batched_power`; what needs Python is flagged in ``code`` for
+:mod:`~cpp_mujoco.physics.compiled_tick`. Run uncompiled (``sense.py_func``) they are their own
+reference (``tests/test_compiled_tick.py``). Constants come in arguments, none from another
 module's globals: numba freezes those into its cache, which notices only this file's changes.
 """
 
@@ -246,7 +246,8 @@ def control(i, code, st, cols, c, R, ref, motors_on, A, integral, disturbance, l
     written) having changed nothing. ``c``: ``compiled_tick.control_constants``."""
     q0, v0, a0, u0, x0 = cols[0], cols[1], cols[2], cols[3], cols[4]
     gusty, turbulent, min_air, per_log = c[0] != 0.0, c[34] != 0.0, c[35], c[36]
-    gu, gv, gw, half_rho_cda = c[37], c[38], c[39], c[33]
+    gu, gv, gw, half_rho_cda, max_keys = c[37], c[38], c[39], c[33], c[c.size - 1]
+    nan_row = np.full(16, np.nan)
     missing = 0
     for j in range(i.size):  # what the tick needs first: the noise, then coefficients
         d = i[j]
@@ -260,8 +261,10 @@ def control(i, code, st, cols, c, R, ref, motors_on, A, integral, disturbance, l
             speed = _mean_wind(d, st[d, q0], st[d, q0 + 1], st[d, q0 + 2], c, steady, gust,
                                gust_block, gust_left, last, has_last_pos)[5]  # fmt: skip
             key = np.rint(math.log(max(speed, min_air)) * per_log)
+            if not 0.0 <= key < max_keys:
+                key = -1.0  # diverged: no table row, the turbulence turns NaN
             keys[j] = key
-            missing += not (0.0 <= key < filled.size) or not filled[int(key)]
+            missing += key >= 0.0 and (key >= filled.size or not filled[int(key)])
     if missing:
         return NEED_COEFFICIENTS
     f = np.empty(8)
@@ -279,7 +282,7 @@ def control(i, code, st, cols, c, R, ref, motors_on, A, integral, disturbance, l
             gust_left[d] -= 2
         if turbulent:
             last[d, 0], last[d, 1], last[d, 2], has_last_pos[d] = pos[0], pos[1], pos[2], True
-            tc, s = table[int(keys[j])], turb[d]
+            tc, s = table[int(keys[j])] if keys[j] >= 0.0 else nan_row, turb[d]
             n = turb_left[d]
             turb_left[d] = n - 5
             u = tc[0] * s[0] + tc[1] * turb_block[d, n - 1]

@@ -1,21 +1,20 @@
-"""The batched flight's control tick, compiled: the choice of tick and the Python around the
-kernels of :mod:`~cpp_mujoco.physics.compiled_control` and
-:mod:`~cpp_mujoco.physics.compiled_power`.
+"""The batched flight's control tick: the Python around the compiled kernels of
+:mod:`~cpp_mujoco.physics.compiled_control` and :mod:`~cpp_mujoco.physics.compiled_power`.
 
-Why: at 128 drones the numpy tick costs about half as long as MuJoCo's five physics steps
-between ticks; compiled, it is three calls (sense, control, power) that cost a few percent of
-them. numba is a dependency; the numpy tick (``tick="numpy"``) flies the same doubles.
+Why: as numpy arrays a tick is ≈ 150 calls over short arrays and costs about half as long as
+MuJoCo's five physics steps between ticks at 128 drones (more than them at one drone); compiled,
+it is three calls (sense, control, power) that cost a few percent of them.
 
 The kernels flag what stays in Python, drone by drone and rarely: the failure messages, the
 camera frames due, the ground contacts and time limits of landing or falling drones, the
 battery's overload and failsafe, a noise block that runs out, turbulence coefficients not yet
-tabled. Everything else of a tick is arithmetic over the numpy twins' state arrays.
+tabled. Everything else of a tick is arithmetic over the state arrays of
+:mod:`~.batched_control` and :mod:`~.batched_power`.
 """
 
 from __future__ import annotations
 
 import math
-import os
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -27,42 +26,17 @@ from cpp_mujoco.physics.controller import GRAVITY
 if TYPE_CHECKING:
     from cpp_mujoco.physics.batched_flight import BatchedFlight
 
-TICKS = ("auto", "numpy", "compiled")
-TICK_VARIABLE = "CPP_MUJOCO_TICK"  # the tick when none is given (default auto)
 # the cell's OCV curve as the compiled battery takes it: a, b, c0…c3, then a/b, c1/2, c2/3
 OCV = (_A, _B, *_C, _A / _B, _C[1] / 2, _C[2] / 3)
-_MAX_KEYS = 1 << 14  # tabled turbulence time scales: airspeeds up to e^(key·0.5 %) ≈ 1e35 m/s
-
-
-def resolve_tick(tick: str | None = None) -> str:
-    """The tick that flies for ``tick``: ``"numpy"``, or ``"compiled"`` (numba required), or
-    ``"auto"`` (compiled where numba imports); None reads ``CPP_MUJOCO_TICK`` (default auto)."""
-    if tick is None:
-        tick = os.environ.get(TICK_VARIABLE) or "auto"
-    if tick not in TICKS:
-        raise ValueError(f"tick must be one of {', '.join(map(repr, TICKS))}, got {tick!r}")
-    if tick == "numpy":
-        return tick
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        if tick == "compiled":
-            raise ImportError(
-                "tick='compiled' needs numba, a dependency of cpp_mujoco: reinstall the package, "
-                "or fly tick='numpy'"
-            ) from None
-        return "numpy"
-    return "compiled"
-
-
-def choose_tick(flight: BatchedFlight, tick: str | None) -> CompiledTick | None:
-    """The compiled tick of ``flight`` (:func:`resolve_tick`), or None for the numpy one."""
-    return CompiledTick(flight) if resolve_tick(tick) == "compiled" else None
+# tabled turbulence time scales: airspeeds up to e^(key·0.5 %) ≈ 1e35 m/s; a drone's airspeed
+# past that (or NaN) has diverged already, and its turbulence turns NaN (it fails next tick)
+MAX_KEYS = 1 << 14
 
 
 def control_constants(flight: BatchedFlight) -> np.ndarray:
     """The constants ``compiled_control.control`` and ``compiled_power.power`` read, in their
-    order: wind (and gravity), controller, energy, battery, drag, turbulence, the OCV curve."""
+    order: wind (and gravity), controller, energy, battery, drag, turbulence, the OCV curve,
+    the turbulence table's size limit."""
     one, w = flight.one, flight.wind.s
     c = one.controller
     e = one.interval_energy
@@ -75,7 +49,7 @@ def control_constants(flight: BatchedFlight) -> np.ndarray:
         e.power.coef, e.power.avionics * len(e.decay), e.dt, e.mean_decay,
         spec.cells, spec.resistance, spec.cutoff_v, one.drag.half_rho_cda,
         turb is not None, *((turb.min_airspeed, turb._per_log, *turb._gain) if turb else [0.0] * 5),
-        *OCV,
+        *OCV, MAX_KEYS,
     ], dtype=float)  # fmt: skip
 
 
@@ -165,8 +139,8 @@ class CompiledTick:
                     w.gust_noise.refill(go, 2)
                 if w.turb is not None:
                     w.turb_noise.refill(go, 5)
-            elif not self._tabulate(self.keys[: i.size][code & 7 == K.FLY]):
-                return self._numpy_control(i, go, code, a)  # an airspeed off the table
+            else:
+                self._tabulate(self.keys[: i.size][code & 7 == K.FLY])
         flagged = self.p.power(
             go, f.state, self.cols, self.control_c, self.air, f.motors_on, a.t, f.energy_used,
             f.capacity, f.energy_of.decay, self.ff, b.charge_c, b.soc, b.current, b.drawn_j,
@@ -180,13 +154,13 @@ class CompiledTick:
             if d.size:
                 f._failsafe(d, f.state[d, f.cols[0]][:, :3], a)
 
-    def _tabulate(self, keys: np.ndarray) -> bool:
+    def _tabulate(self, keys: np.ndarray) -> None:
         """Table the turbulence coefficients of ``keys`` (the scalar model's rows, keyed as
-        it keys them); False where a key is off the table (not finite, or huge)."""
+        it keys them; the kernel leaves keys off the table out)."""
         turb = self.f.wind.turb
         for key in np.unique(keys).tolist():
-            if not 0 <= key < _MAX_KEYS:
-                return False
+            if not 0 <= key < MAX_KEYS:
+                continue
             row = int(key)
             if row >= len(self.filled):
                 size = max(row + 1, 2 * len(self.filled), 256)
@@ -195,17 +169,3 @@ class CompiledTick:
             if not self.filled[row]:
                 self.table[row] = turb._coefficients(math.exp(key / turb._per_log))
                 self.filled[row] = True
-        return True
-
-    def _numpy_control(
-        self, i: np.ndarray, go: np.ndarray, code: np.ndarray, a: MacroActions
-    ) -> None:
-        """The numpy twin's inputs for this tick (the same state arrays): what flies an
-        airspeed the table does not hold."""
-        f = self.f
-        keep = code[: i.size] & 7 == self.k.FLY
-        st = f.state[go]
-        q, v, act = st[:, f.cols[0]], st[:, f.cols[1]], st[:, f.cols[2]]
-        ref = self.ref[: i.size][keep]
-        f._control(go, q[:, :3], v[:, :3], self.R[: i.size][keep], v[:, 3:], act, ref[:, :3],
-                   ref[:, 3:6], ref[:, 6:], a)  # fmt: skip

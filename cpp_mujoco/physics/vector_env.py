@@ -2,7 +2,7 @@
 
 N quadrotors fly their grid actions together
 (:class:`~cpp_mujoco.physics.batched_flight.BatchedFlight`): one control tick for all of them
-(compiled with numba where installed, else numpy), their ``MjData`` stepped in one
+(compiled with numba), their ``MjData`` stepped in one
 ``mujoco.batch`` call on ``threads`` threads. Everything around the flight is the grid vector
 env's (:class:`~cpp_mujoco.grid.vector_env.GridVectorEnv`): seeding
 (``reset(seed=[...])``, one generator per env, drawn in a single env's order), per-env reset
@@ -42,10 +42,7 @@ class MuJoCoVectorEnv(GridVectorEnv):
     use is the fastest when it has the cores to itself). ``wind_directions``: one direction per
     env (degrees, as ``wind_direction``) for a batch that flies one weather from several
     directions — env i flies (and observes) what a single env with ``wind_direction`` =
-    ``wind_directions[i]`` does; ``physics_config`` then records only the first. ``tick``:
-    the control tick's arithmetic, ``"auto"`` (compiled where numba imports), ``"compiled"``
-    or ``"numpy"`` (None: ``CPP_MUJOCO_TICK``, else auto); both fly the same doubles
-    (:class:`~cpp_mujoco.physics.batched_flight.BatchedFlight`)."""
+    ``wind_directions[i]`` does; ``physics_config`` then records only the first."""
 
     def __init__(
         self,
@@ -57,7 +54,6 @@ class MuJoCoVectorEnv(GridVectorEnv):
         render_mode: str | None = None,
         threads: int = 1,
         wind_directions: Any = None,
-        tick: str | None = None,
         **kwargs: Any,
     ):
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
@@ -69,7 +65,7 @@ class MuJoCoVectorEnv(GridVectorEnv):
         c = self.physics_config
         self.model = compile_arena(build_arena(self.grid_map, c, grid.fov_side))
         self.flight = BatchedFlight(
-            self.model, self.grid_map, c, num_envs, self.mdp.coverage, threads, tick
+            self.model, self.grid_map, c, num_envs, self.mdp.coverage, threads
         )
         self.unit_energy = unit_energy(c)
         drag = self.flight.one.drag.half_rho_cda
