@@ -4,7 +4,7 @@ Two forms of the same loop, because there are two kinds of env:
 
 * :func:`run_episode` — one gymnasium env (``Grid-v0`` or ``MuJoCo-v0``), one episode: the
   physics protocol's workers and ``fly`` run it; ``fly`` adds its recording through
-  ``on_start``/``on_step`` (and its cameras through the flight's own ``on_frame``).
+  ``on_start``/``on_step`` (and its cameras through the env's ``on_frame``).
 * :func:`run_batch` — a batched :class:`GridMDP`, all its episodes at once: the grid protocol
   (``evaluate``), the planners' rollouts and the recorded demonstrations run it.
 * :func:`run_vector_episodes` — a gymnasium vector env (the batched ``MuJoCo-v0``), one episode

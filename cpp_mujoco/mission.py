@@ -3,7 +3,7 @@
 The episode is the protocol's own :func:`~cpp_mujoco.episode.run_episode`; the review is added
 through its hooks (the files are opened after the reset, so a bad start writes nothing). Works
 with either backend. In MuJoCo, the recorder and the cameras are fed at the camera frame rate
-from inside the flight (``Flight.on_frame``); on the grid, poses are the cell centres at cruise
+from inside the flight (``MuJoCoEnv.on_frame``); on the grid, poses are the cell centres at cruise
 altitude, one per action, and the footprint is the 3×3 square.
 
 An interrupted mission (Ctrl-C, or SIGTERM inside :func:`cpp_mujoco.signals.interruptible`)
@@ -125,7 +125,7 @@ def fly_mission(
                 env, recorder, video, onboard_video, image_every, review["cameras"],
                 review["writers"], about=about, tap=tap, on_chase_frame=on_chase_frame,
             )  # fmt: skip
-            env.flight.on_frame = review["flight"].on_frame
+            env.on_frame = review["flight"].on_frame
         elif recorder is not None:
             _log_grid_pose(recorder, grid_map, info["position"], cell_size, altitude, 0.0, fov)
 
@@ -155,7 +155,7 @@ def fly_mission(
         raise
     finally:
         if physics:
-            env.flight.on_frame = None
+            env.on_frame = None
     bar.close()
     files = _finalise(review["recorder"], review["writers"], review["cameras"], None)
     info = episode.info

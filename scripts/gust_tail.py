@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
@@ -32,10 +33,10 @@ from cpp_mujoco.grid.wind import (
 )
 from cpp_mujoco.io import atomic_path, atomic_write_text
 from cpp_mujoco.physics.action_energy import _HEADINGS, _OPEN, _kind
-from cpp_mujoco.physics.arena import build_arena, compile_arena
+from cpp_mujoco.physics.batched_action import HOVER, MOVE
+from cpp_mujoco.physics.batched_flight import BatchedFlight
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.flight import Flight
 
 SUMS = (1, 2, 4, 8, 12)
 
@@ -47,16 +48,16 @@ def fly(job: tuple[float, float, int, int]) -> list[tuple[int, float]]:
     config = replace(
         PhysicsConfig(), wind_speed=speed, wind_direction=direction, turbulence="moderate"
     )
-    flight = Flight(compile_arena(build_arena(_OPEN, config)), _OPEN, config)
+    flight = BatchedFlight.alone(_OPEN, config)
     width, middle = _OPEN.shape[1], 2 * _OPEN.shape[1] + 2
-    flight.reset(2, 2, rng=np.random.default_rng(seed))
-    flight.hover(middle)  # settle
+    flight.reset(0, 2, 2, math.inf, np.random.default_rng(seed))
+    flight.fly_one(HOVER, middle)  # settle
     order = np.random.default_rng(10_000 + seed)
     sequence = []
     for _ in range(rounds):
         for heading in order.permutation(list(_HEADINGS)):
             row, col = _HEADINGS[heading]
-            out, back = flight.move(row * width + col), flight.move(middle)
+            out, back = flight.fly_one(MOVE, row * width + col), flight.fly_one(MOVE, middle)
             for h, result in ((heading, out), ((heading + 180.0) % 360.0, back)):
                 if result.failure is not None:
                     raise RuntimeError(f"flight {job} failed: {result.failure}")

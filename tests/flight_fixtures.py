@@ -163,8 +163,10 @@ def fly_single(case: Case) -> Recording:
         options = {"start": case.starts[i], "budget": case.budgets[i]}
         obs, info = env.reset(seed=case.seeds[i], options=options)
         rows[0][i] = {**_fields(obs, info, data.qpos[:7], 0.0, False, False), "stepped": True}
-        if case.broken:
-            break_drone(i, data.qpos, data.qvel)
+        if case.broken:  # in the drone's state row: ``data`` is a copy of it
+            flight = env.unwrapped.flight
+            q, v = flight.cols[:2]
+            break_drone(i, flight.state[0, q], flight.state[0, v])
         for step, actions in enumerate(case.actions, start=1):
             obs, reward, term, trunc, info = env.step(int(actions[i]))
             rows[step][i] = {

@@ -1,8 +1,6 @@
 """The LiPo pack: OCV curve, I²R loss, energy conservation with the rotors, cut-off, info and
 recording, and the calm-air budget unit it leaves intact."""
 
-import math
-
 import mujoco
 import numpy as np
 import pytest
@@ -112,19 +110,9 @@ def test_bad_battery_options_are_one_line_errors():
 # ----------------------------------------------------------------------------- a flown episode
 @pytest.fixture(scope="module")
 def episode():
-    """A calm episode on a 5×5 map flown until its budget is spent: what the rotors asked for
-    (each tick's electrical energy, recorded at the power model) and the info after each step."""
+    """A calm episode on a 5×5 map flown until its budget is spent, and the info after each
+    step."""
     env = MuJoCoEnv(map=OPEN, wind_speed=3.0, wind_direction=40.0)  # some variety in the load
-    flight = env.flight
-    model = flight.interval_energy
-    rotor_j: list[float] = []
-
-    def recorded(*args, **kwargs):
-        e = model(*args, **kwargs)
-        rotor_j.append(e)
-        return e
-
-    flight.interval_energy = recorded
     _, info = env.reset(seed=0, options={"start": (2, 2), "budget": 4})
     infos = [info]
     terminated = False
@@ -132,25 +120,25 @@ def episode():
     while not terminated:
         _, _, terminated, _, info = env.step(next(actions))
         infos.append(info)
-    return env, rotor_j, infos
+    return env, infos
 
 
 def test_energy_conservation_between_the_battery_and_the_rotors(episode):
-    env, rotor_j, infos = episode
+    env, infos = episode
     pack = env.flight.battery
-    load = math.fsum(rotor_j)
-    assert pack.load_j == pytest.approx(load, rel=1e-9)  # every tick the rotors drew went in
-    assert pack.drawn_j == pytest.approx(pack.load_j + pack.loss_j, rel=1e-6)
-    assert 0.005 < pack.loss_j / pack.load_j < 0.05  # I²R: a few percent at these loads
+    load, drawn, loss = pack.load_j[0], pack.drawn_j[0], pack.loss_j[0]
+    assert drawn == pytest.approx(infos[-1]["energy_used_j"], rel=1e-12)  # the budget's energy
+    assert drawn == pytest.approx(load + loss, rel=1e-6)
+    assert 0.005 < loss / load < 0.05  # I²R: a few percent at these loads
     # the chemical energy equals the charge removed times the cited OCV, integrated afresh
-    cells, q = pack.spec.cells, pack.charge_c
-    chemical = cells * q * quad(cell_ocv, pack.soc, 1.0, points=[0.1], limit=200)[0]
-    assert pack.drawn_j == pytest.approx(chemical, rel=1e-6)
+    cells, q = pack.spec.cells, pack.charge_c[0]
+    chemical = cells * q * quad(cell_ocv, pack.soc[0], 1.0, points=[0.1], limit=200)[0]
+    assert drawn == pytest.approx(chemical, rel=1e-6)
     assert infos[-1]["crashed"] and infos[-1]["budget"] == 0  # ran the budget down
 
 
 def test_info_reports_the_pack_in_range_over_an_episode(episode):
-    env, _, infos = episode
+    env, infos = episode
     spec = env.flight.battery.spec
     soc = [i["state_of_charge"] for i in infos]
     volts = [i["battery_voltage_v"] for i in infos]
@@ -161,7 +149,7 @@ def test_info_reports_the_pack_in_range_over_an_episode(episode):
     # the budget's energy spans SOC 1 → reserve: what is left above the reserve is exactly
     # the energy the budget has left, less than the one unit that no longer reads as a unit
     pack, last = env.flight.battery, infos[-1]
-    above_reserve = spec.cells * pack.charge_c * quad(cell_ocv, spec.reserve, soc[-1])[0]
+    above_reserve = spec.cells * pack.charge_c[0] * quad(cell_ocv, spec.reserve, soc[-1])[0]
     left = 4 * env.unit_energy - last["energy_used_j"]
     assert above_reserve == pytest.approx(left, rel=1e-6)
     assert 0 < left < env.unit_energy
@@ -188,15 +176,15 @@ def test_cut_off_lands_where_the_uav_is_and_ends_as_a_battery_crash():
     assert info["crash_reason"].startswith("battery")
     assert not info["landed"]
     flight = env.flight
-    assert flight._ground_contact() is True  # on its skids: the failsafe landed it, upright
-    assert flight.nfz_violations == 0
+    assert flight._ground_contact(0) is True  # on its skids: the failsafe landed it, upright
+    assert flight.nfz_violations[0] == 0
     assert info["budget"] > 0  # the voltage ended it, not the budget
     assert 0.7 < info["state_of_charge"] < 0.95
     assert steps < 10
 
 
 def test_recording_holds_state_of_charge_and_voltage(tmp_path, episode):
-    env, _, infos = episode
+    env, infos = episode
     path = tmp_path / "battery.rrd"
     rec = MissionRecorder(path, OPEN)
     for step, info in enumerate(infos[1:], start=1):

@@ -62,3 +62,21 @@ def test_a_drifted_number_flag_or_reason_fails(recorded):
     renamed.outcomes[0] = "landed"
     with pytest.raises(AssertionError, match="outcomes"):
         compare(want, renamed, "renamed")
+
+
+def test_the_calibration_and_the_energy_table_fly_as_recorded():
+    """The budget unit and the per-action energies, flown alone (one drone, its own arena), are
+    the doubles the scalar flight flew before the merge (recorded at commit 609177f)."""
+    from cpp_mujoco.physics.action_energy import flown_sequence
+    from cpp_mujoco.physics.calibration import calibrate
+    from cpp_mujoco.physics.config import PhysicsConfig
+
+    figures = calibrate(PhysicsConfig())
+    assert figures["unit_energy_j"] == pytest.approx(488.2464244794845, rel=1e-12)
+    assert figures["hover_energy_j"] == pytest.approx(481.75579730840025, rel=1e-12)
+    assert figures["move_duration_s"] == pytest.approx(3.000000000000294, rel=1e-12)
+    sequence = flown_sequence(PhysicsConfig(wind_speed=9.0, turbulence="moderate"), 3)
+    assert [kind for kind, _ in sequence[:4]] == ["upwind", "downwind", "crosswind", "crosswind"]
+    recorded = [546.0716673284053, 443.6123116726459, 560.6875390589948, 669.3146182055302]
+    assert [j for _, j in sequence[:4]] == pytest.approx(recorded, rel=1e-9)
+    assert sequence[-2] == ("hover", pytest.approx(491.2278949545989, rel=1e-9))

@@ -22,9 +22,10 @@ KEYS = ("position", "budget", "landed", "crashed", "energy_used_j", "flight_time
 
 def _fly(kwargs: dict, perturb, actions: list[int], n: int = 3, budget: int = 10, at: int = 0):
     """``n`` drones of a batched env and ``n`` single envs from (2, 2); ``perturb(i, qpos,
-    qvel)`` edits each drone's state before action ``at`` (the single env's ``MjData`` fields,
-    the batched env's state row views). Every info key must agree exactly after every step, and
-    so must the full MuJoCo state (qpos, qvel, act, warmstart). Returns each crash reason."""
+    qvel)`` edits each drone's state before action ``at`` (views of its state row in its
+    flight: a single env's is a batch of one). Every info key must agree exactly after every
+    step, and so must the full MuJoCo state (qpos, qvel, act, warmstart). Returns each crash
+    reason."""
     venv = MuJoCoVectorEnv(num_envs=n, map=OPEN, **kwargs)
     singles = [gym.make("cpp_mujoco/MuJoCo-v0", map=OPEN, **kwargs).unwrapped for _ in range(n)]
     start = {"start": np.array([[2, 2]] * n), "budget": np.full(n, budget)}
@@ -41,8 +42,8 @@ def _fly(kwargs: dict, perturb, actions: list[int], n: int = 3, budget: int = 10
     reasons: list[str | None] = [None] * n
     for step, action in enumerate(actions):
         if step == at:
-            for i, env in enumerate(singles):
-                perturb(i, env.data.qpos, env.data.qvel)
+            for i, env in enumerate(singles):  # a single env's drone is its batch's row 0
+                perturb(i, env.flight.state[0, q], env.flight.state[0, v])
                 perturb(i, f.state[i, q], f.state[i, v])
         *_, info = venv.step(np.full(n, action))
         for i, env in enumerate(singles):

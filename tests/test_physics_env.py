@@ -10,6 +10,7 @@ from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.benchmark import benchmark_physics
 
 SMALL = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="small")
+OPEN3 = GridMap.from_ascii(["TTT", "TLT", "TTT"], name="open")
 INFO_KEYS = {
     "position", "budget", "landed", "crashed", "rejected", "coverage_ratio",
     "energy_used_j", "flight_time_s", "nfz_violations", "max_track_error_m", "tracking_error_m",
@@ -108,3 +109,25 @@ def test_landing_with_the_last_budget_unit_succeeds_as_on_the_grid():
         _, _, terminated, _, info = env.step(action)
     assert terminated and info["landed"] and not info["crashed"]
     assert info["energy_used_j"] < 3 * env.unit_energy
+
+
+def test_data_holds_the_drone_after_every_step_and_at_every_frame_of_the_hook():
+    """``env.data`` is the drone's ``MjData`` after each reset and step; while ``on_frame`` is
+    set it is brought up to date at every camera frame (first and last of each action
+    included) before the hook is called with the env."""
+    env = gym.make("cpp_mujoco/MuJoCo-v0", map=OPEN3, wind_speed=3.0).unwrapped
+    env.reset(seed=0, options={"start": (1, 1), "budget": 6})
+    flight, q = env.flight, env.flight.cols[0].start
+    times, heights = [], []
+    env.on_frame = lambda e: (times.append(float(e.data.time)), heights.append(e.data.qpos[2]))
+    _, _, _, _, info = env.step(1)
+    np.testing.assert_array_equal(env.data.qpos[:3], flight.state[0, q : q + 3])
+    assert env.data.time == flight.state[0, 0] == info["flight_time_s"]
+    rate = env.config.camera_rate
+    assert times[0] == 0.0 and times[-1] == env.data.time  # the action's first and last frames
+    gaps = np.diff(times)
+    assert np.all(gaps >= 0) and gaps[1:-1].max() <= 1 / rate + 2.5 * env.config.control_dt
+    assert np.ptp(heights) < 0.5  # a level move at cruise altitude, frame by frame
+    env.on_frame = None
+    env.step(2)
+    assert len(times) == len(heights) and times[-1] < env.data.time  # the hook is off

@@ -162,7 +162,7 @@ def test_budget_spent_mid_move_lands_where_the_uav_is_and_ends_in_a_crash():
     newly_seen = int((obs["coverage"].astype(bool) & OPEN.target).sum())
     assert reward == pytest.approx(0.4 * newly_seen - 0.2 - 150.0)
     # the failsafe landed it upright on its skids, on the reserve, between the two cells
-    assert flight._ground_contact() is True
+    assert flight._ground_contact(0) is True
     assert info["energy_used_j"] > flight.capacity
     trace = np.array(flight.trace)
     along, across = np.abs(trace[-1, 1:3] - trace[0, 1:3])[::-1]  # north, east
@@ -182,7 +182,8 @@ def test_budget_reaching_zero_unlanded_is_a_crash():
 def test_physical_failure_is_a_crash_not_an_exception():
     env = MuJoCoEnv(map=OPEN)
     env.reset(seed=0, options={"start": (2, 2), "budget": 5})
-    env.data.qpos[3:7] = (0.0, 1.0, 0.0, 0.0)  # upside down
+    q = env.flight.cols[0].start  # the drone's state row; ``env.data`` is a copy of it
+    env.flight.state[0, q + 3 : q + 7] = (0.0, 1.0, 0.0, 0.0)  # upside down
     _, reward, terminated, _, info = env.step(EAST)
     assert terminated and info["crashed"] and info["crash_reason"] == "flipped over"
     assert math.isfinite(reward)

@@ -108,7 +108,7 @@ def test_gains_are_options_of_the_env_and_part_of_the_calibration_key(tmp_path, 
     monkeypatch.setattr(cal, "_MEMO", {})
     env = gym.make("cpp_mujoco/MuJoCo-v0", map=OPEN, controller={"attitude_bw": 10.0}).unwrapped
     assert env.config.controller == ControllerGains(attitude_bw=10.0)
-    assert env.flight.controller.gains == env.config.controller
+    assert env.flight.controller.c.gains == env.config.controller
     default_key = PhysicsConfig().calibration_key()
     assert env.config.calibration_key() != default_key
     assert env.unit_energy != pytest.approx(cal.unit_energy(PhysicsConfig()), rel=1e-9)

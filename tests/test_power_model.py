@@ -174,14 +174,13 @@ def test_energy_used_is_the_sum_of_the_ticks():
         "cpp_mujoco/MuJoCo-v0", map=GRID, wind_speed=6.0, power_model="forward-flight"
     ).unwrapped
     env.reset(seed=0, options={"start": (2, 1), "budget": 10})
-    flight = env.flight
-    drawn = []
-    draw = flight.battery.draw
-    flight.battery.draw = lambda *a: drawn.append(draw(*a)) or drawn[-1]
+    pack = env.flight.battery
     for action in (NORTH, NORTH, SOUTH):
         _, _, terminated, truncated, info = env.step(action)
         assert not (terminated or truncated)
-    assert info["energy_used_j"] == pytest.approx(sum(drawn), rel=1e-12)
+        # every tick's draw from the pack, its I²R loss included, and nothing else
+        assert info["energy_used_j"] == pytest.approx(pack.drawn_j[0], rel=1e-12)
+        assert pack.drawn_j[0] == pytest.approx(pack.load_j[0] + pack.loss_j[0], rel=1e-6)
     env.close()
 
 

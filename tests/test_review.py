@@ -331,20 +331,3 @@ def test_a_long_mission_needs_no_rrd_optimize(tmp_path):
     assert {rid for _, rid in rrd_stores(path)} >= {recording_id}  # the same recording
     entities = rrd_entities(path)  # verified, and everything still in it
     assert {"/world/wind", "/world/waypoint", "/metrics/wind", "/coverage"} <= set(entities)
-
-
-def test_the_wind_probe_passes_the_wind_through_and_keeps_the_last(tmp_path):
-    from cpp_mujoco.physics.config import PhysicsConfig
-    from cpp_mujoco.physics.wind import Wind
-    from cpp_mujoco.review.recording import WindProbe
-
-    config = PhysicsConfig(wind_speed=6.0, wind_direction=90.0, turbulence="moderate")
-    alone, probed = Wind(config, 0.02), SimpleNamespace(wind=Wind(config, 0.02))
-    probe = WindProbe.attach(probed)
-    assert probed.wind is probe and probe.last is None
-    alone.reset(np.random.default_rng(1))
-    probed.wind.reset(np.random.default_rng(1))  # passed on to the wrapped model
-    for k in range(20):
-        expected = alone.velocity(0.02 * k, (0.1 * k, 0.0, 6.0))
-        assert probed.wind.velocity(0.02 * k, (0.1 * k, 0.0, 6.0)) == expected == probe.last
-    assert probe.axis == alone.axis  # other attributes are the model's

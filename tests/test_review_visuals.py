@@ -295,7 +295,7 @@ def test_rendering_leaves_the_flight_unchanged(gl, tmp_path):
             review = FlightReview(env, None, None, tmp_path / "onboard.mp4", 2, cameras, writers,
                                   about={"map_name": "small", "policy": "p", "budget": 12},
                                   on_chase_frame=frames.append)  # fmt: skip
-            env.flight.on_frame = review.on_frame
+            env.on_frame = review.on_frame
         trace = []
         for action in (1, 2, 3, 0, 3, 4):  # a loop back to the landing area, then land
             *_, info = env.step(action)

@@ -16,7 +16,6 @@ from cpp_mujoco.grid.single_env import SingleGridEnv
 from cpp_mujoco.grid.vector_env import GridVectorEnv
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.env import MuJoCoEnv
-from cpp_mujoco.physics.flight import ActionResult
 
 SMALL = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="small")
 R = Rewards()
@@ -119,8 +118,15 @@ def test_physics_reward_and_flags_equal_the_grid_rules_for_the_same_outcome(phys
 
 def test_a_physical_failure_ends_the_episode_through_the_same_rules(physics, monkeypatch):
     physics.reset(seed=0, options={"start": (0, 0), "budget": 9})
-    flipped = ActionResult(duration=0.5, energy=1.0, failure="flipped over")
-    monkeypatch.setattr(physics.flight, "move", lambda cell: flipped)
+    fly = physics.flight.fly
+
+    def flipped(kinds, cells, active):  # the flight as it flies, ending in a flip
+        result = fly(kinds, cells, active)
+        result["failure"][0], result["landed"][0] = "flipped over", False
+        result["newly_seen"][0] = 0
+        return result
+
+    monkeypatch.setattr(physics.flight, "fly", flipped)
     _, reward, terminated, _, info = physics.step(1)
     assert terminated and info["crashed"] and info["crash_reason"] == "flipped over"
     assert info["budget"] > 0  # ended by the failure, not by the budget

@@ -23,7 +23,7 @@ def test_make_vec_returns_the_native_array_env():
 
 @pytest.mark.parametrize("map_name", ["A", "B", "C"])
 def test_single_and_batched_envs_agree_step_by_step(map_name):
-    n, steps = 16, 400
+    n, steps = 8, 200
     envs = gym.make_vec("cpp_mujoco/Grid-v0", num_envs=n, map=map_name)
     singles = [gym.make("cpp_mujoco/Grid-v0", map=map_name) for _ in range(n)]
     rng = np.random.default_rng(1)

@@ -11,14 +11,15 @@ where the wind blows from, *downwind* opposite, *crosswind* otherwise (the two a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.arena import build_arena, compile_arena
+from cpp_mujoco.physics.batched_action import HOVER, LAND, MOVE
+from cpp_mujoco.physics.batched_flight import BatchedFlight
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.flight import Flight
 
 _OPEN = GridMap.from_ascii(["TTTTT", "TTTTT", "TTLTT", "TTTTT", "TTTTT"], name="open-5x5")
 # heading (deg, clockwise from north) → the neighbour of the middle cell (row, col)
@@ -43,25 +44,25 @@ def _kind(heading: float, wind_from: float) -> str:
     return "upwind" if offset == 0.0 else "downwind" if offset == 180.0 else "crosswind"
 
 
-def flown_sequence(config: PhysicsConfig, seed: int = 0, flight: Flight | None = None):
+def flown_sequence(config: PhysicsConfig, seed: int = 0, flight: BatchedFlight | None = None):
     """One flight of the sequence in ``config``'s weather (gusts drawn from ``seed``):
     ``[(kind, joules), …]`` in the order flown, the settling hover left out. In calm air every
     heading counts as crosswind (no wind to face)."""
-    flight = flight or Flight(compile_arena(build_arena(_OPEN, config)), _OPEN, config)
+    flight = flight or BatchedFlight.alone(_OPEN, config)
     calm = config.wind_speed == 0.0
     width = _OPEN.shape[1]
     middle = 2 * width + 2
-    flight.reset(2, 2, rng=np.random.default_rng(seed))
-    flight.hover(middle)  # settle
+    flight.reset(0, 2, 2, math.inf, np.random.default_rng(seed))
+    flight.fly_one(HOVER, middle)  # settle
     sequence: list[tuple[str, float]] = []
     for heading, (row, col) in _HEADINGS.items():
-        out, back = flight.move(row * width + col), flight.move(middle)
+        out, back = flight.fly_one(MOVE, row * width + col), flight.fly_one(MOVE, middle)
         for h, result in ((heading, out), ((heading + 180.0) % 360.0, back)):
             _check(result, f"move heading {h:g}°")
             kind = "crosswind" if calm else _kind(h, config.wind_direction % 360.0)
             sequence.append((kind, result.energy))
-    sequence.append(("hover", _check(flight.hover(middle), "hover").energy))
-    sequence.append(("land", _check(flight.land(middle), "landing").energy))
+    sequence.append(("hover", _check(flight.fly_one(HOVER, middle), "hover").energy))
+    sequence.append(("land", _check(flight.fly_one(LAND, middle), "landing").energy))
     return sequence
 
 
@@ -70,7 +71,7 @@ def action_energy(config: PhysicsConfig, repeats: int = 1, seed: int = 0) -> Act
     ``config``'s weather."""
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")
-    flight = Flight(compile_arena(build_arena(_OPEN, config)), _OPEN, config)
+    flight = BatchedFlight.alone(_OPEN, config)
     energies: dict[str, list[float]] = {k: [] for k in KINDS}
     for r in range(repeats):
         for kind, joules in flown_sequence(config, seed + r, flight):

@@ -9,7 +9,22 @@ from dataclasses import dataclass
 import numpy as np
 
 MOVE, HOVER, LAND = 0, 1, 2  # the three kinds of macro-action
-# the failed state checks of a tick, in the single flight's order
+
+
+@dataclass
+class ActionResult:
+    """What one macro-step did."""
+
+    duration: float = 0.0  # s of simulated time
+    energy: float = 0.0  # J drawn from the battery
+    newly_seen: int = 0  # target cells seen for the first time
+    arrived: bool = False  # reached the waypoint within tolerances (moves and landings)
+    landed: bool = False  # touched down on the landing gear
+    tracking_error: float = 0.0  # m, distance from the commanded point at the end
+    failure: str | None = None  # why the flight ended physically (battery, flip, …)
+
+
+# the failed state checks of a tick, in the order they are tested
 FAILURES = ("numerical divergence (NaN or unstable acceleration)", "left the arena",
             "flipped over", "diverged from the reference")  # fmt: skip
 

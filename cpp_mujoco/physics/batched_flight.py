@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -31,11 +32,12 @@ from mujoco.batch import Batch
 
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.airborne import AirborneSteps
-from cpp_mujoco.physics.batched_action import HOVER, LAND, MOVE, MacroActions
+from cpp_mujoco.physics.batched_action import HOVER, LAND, MOVE, ActionResult, MacroActions
 from cpp_mujoco.physics.batched_camera import BatchedCamera
 from cpp_mujoco.physics.batched_control import BatchedController, References
 from cpp_mujoco.physics.batched_power import BatchedBattery, BatchedEnergy, BatchedWind
 from cpp_mujoco.physics.battery import CUTOFF
+from cpp_mujoco.physics.camera import Polygon, footprint
 from cpp_mujoco.physics.compiled_tick import CompiledTick
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import EMERGENCY_LANDING, Flight, ground_contact
@@ -68,6 +70,11 @@ class BatchedFlight:
         # models whose twins fly here): one place to derive them
         self.one = one = Flight(model, grid_map, config)
         self.model, self.config, self.n, self.k, self.dt = model, config, n, one.k, one.dt
+        self.params, self.geo = one.params, one.geo
+        self.wind_now = np.zeros((n, 3))  # m/s, the wind each drone's last tick flew in
+        # called with a drone's index after each of its camera frames (videos, recordings)
+        self.on_frame: Callable[[int], None] | None = None
+        self.trace: list | None = None  # drone 0's (t, x, y, z) at every tick, when a list
         self.threads = max(1, int(threads))
         # one persistent MjData per drone, stepped in C (the batch copies the model once)
         self.sims = sims = Batch(model, n, nthread=self.threads, persistent=True)
@@ -110,6 +117,14 @@ class BatchedFlight:
         self.no_fly = np.asarray(grid_map.nfz, dtype=bool).reshape(-1)
         self._tick = CompiledTick(self)
 
+    @classmethod
+    def alone(cls, grid_map: GridMap, config: PhysicsConfig) -> BatchedFlight:
+        """One drone over ``grid_map`` in an arena of its own (calibration, energy tables)."""
+        from cpp_mujoco.physics.arena import build_arena, compile_arena
+
+        model = compile_arena(build_arena(grid_map, config))
+        return cls(model, grid_map, config, 1, np.zeros((1, grid_map.target.size), dtype=bool))
+
     def close(self) -> None:
         """Nothing to release: the batch's threads idle without CPU and go with the object."""
 
@@ -135,6 +150,7 @@ class BatchedFlight:
         self.nfz_violations[i] = 0
         self.max_track_error[i] = 0.0
         self.camera.reset(i)
+        self.wind_now[i] = np.nan  # no tick flown yet
         self.coverage[i] = False
         self._bad0[i] = self._bad[i]
 
@@ -148,6 +164,29 @@ class BatchedFlight:
 
     def position(self, i: int) -> np.ndarray:
         return self.state[i, self.cols[0]][:3].copy()
+
+    def waypoint(self, cell: int) -> tuple[float, float, float]:
+        """The point a move to ``cell`` flies to: its centre at cruise altitude."""
+        return self.one.waypoint(cell)
+
+    def copy_data(self, i: int, data: mujoco.MjData) -> mujoco.MjData:
+        """Drone ``i``'s whole ``MjData`` copied into ``data`` (to render or inspect it)."""
+        return self.sims.get_data(i, data)
+
+    def footprint(self, i: int) -> Polygon | None:
+        """Ground corners of drone ``i``'s camera image now (None: the horizon is in view)."""
+        cam = self.camera
+        return footprint(cam.cam_xpos[i].tolist(), cam.cam_xmat[i].tolist(), cam.rays.tolist(),
+                         cam.min_down)  # fmt: skip
+
+    def capture(self, drones: np.ndarray) -> np.ndarray:
+        """A camera frame of each of ``drones`` now (:meth:`BatchedCamera.capture`), then
+        :attr:`on_frame` for each; how many target cells each saw first."""
+        newly = self.camera.capture(drones)
+        if self.on_frame is not None:
+            for d in np.asarray(drones).tolist():
+                self.on_frame(int(d))
+        return newly
 
     # ------------------------------------------------------------------ physics
     def _step(self, drones: np.ndarray, nstep: int) -> None:
@@ -179,7 +218,7 @@ class BatchedFlight:
     # ------------------------------------------------------------------ macro-steps
     def fly(self, kinds: np.ndarray, cells: np.ndarray, active: np.ndarray) -> dict:
         """Fly one macro-action per ``active`` drone (``kinds``: MOVE to / HOVER over / LAND on
-        ``cells``); the result fields of :class:`~cpp_mujoco.physics.flight.ActionResult` as
+        ``cells``); the result fields of :class:`~.batched_action.ActionResult` as
         (n,) arrays (zero for drones not active)."""
         n, c, one = self.n, self.config, self.one
         res = {
@@ -192,7 +231,7 @@ class BatchedFlight:
         if idx.size == 0:
             return res
         e0, t0 = self.energy_used.copy(), self.state[:, 0].copy()
-        res["newly_seen"][idx] += self.camera.capture(idx)
+        res["newly_seen"][idx] += self.capture(idx)
         kind = kinds[idx]
         rows, cols = np.divmod(cells[idx], one.geo.width)
         x, y = one.geo.cell_center(rows, cols)
@@ -221,18 +260,28 @@ class BatchedFlight:
         )  # fmt: skip
         self._loop(action)
         self.max_track_error[idx] = np.sqrt(action.worst2[idx])
-        res["newly_seen"][idx] += self.camera.capture(idx)
+        res["newly_seen"][idx] += self.capture(idx)
         res["duration"][idx] = self.state[idx, 0] - t0[idx]
         res["energy"][idx] = self.energy_used[idx] - e0[idx]
         p = self.state[idx, self.cols[0]][:, :3]
         res["tracking_error"][idx] = np.sqrt(((p - goal[idx]) ** 2).sum(1))
         return res
 
+    def fly_one(self, kind: int, cell: int, i: int = 0) -> ActionResult:
+        """One macro-action of drone ``i`` alone (the others wait): MOVE to, HOVER over or
+        LAND on ``cell``."""
+        active = np.zeros(self.n, dtype=bool)
+        active[i] = True
+        res = self.fly(np.full(self.n, kind), np.full(self.n, cell), active)
+        return ActionResult(**{k: v[i].item() if k != "failure" else v[i] for k, v in res.items()})
+
     def _loop(self, a: MacroActions) -> None:
         """The tick loop of :meth:`Flight._fly` over the drones still flying: one control tick
         for all of them (:meth:`_tick`), then their physics steps (one C call)."""
-        k, dt, tick = self.k, self.dt, self._tick
+        k, dt, tick, q = self.k, self.dt, self._tick, self.cols[0].start
         while np.count_nonzero(a.flying):
+            if self.trace is not None and a.flying[0]:
+                self.trace.append(tuple(self.state[0, [0, q, q + 1, q + 2]].tolist()))
             go = tick(np.flatnonzero(a.flying), a)
             if go.size:
                 self._step(go, k)

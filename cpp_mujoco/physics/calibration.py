@@ -23,13 +23,14 @@ from functools import cache
 from pathlib import Path
 
 import mujoco
+import numpy as np
 
 from cpp_mujoco.io import WriteError, atomic_write_text
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.arena import build_arena, compile_arena
+from cpp_mujoco.physics.batched_action import HOVER, MOVE
+from cpp_mujoco.physics.batched_flight import BatchedFlight
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.energy import PowerModel
-from cpp_mujoco.physics.flight import Flight
 from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
 
 _MEMO: dict[str, dict] = {}
@@ -53,10 +54,10 @@ def calibrate(config: PhysicsConfig) -> dict:
     # the cut-off is a limit of the pack, not part of a move's cost: it is off while measuring
     calm = replace(config, wind_speed=0.0, gust_std=0.0, turbulence="none", battery_cutoff_v=0.0)
     grid = GridMap.from_ascii(["GGG", "GGG", "GGG"], name="calibration")
-    flight = Flight(compile_arena(build_arena(grid, calm)), grid, calm)
-    flight.reset(1, 1)
-    hover = flight.hover(4)
-    moves = [flight.move(r * 3 + c) for r, c in _MOVES]
+    flight = BatchedFlight.alone(grid, calm)
+    flight.reset(0, 1, 1, math.inf, np.random.default_rng(0))
+    hover = flight.fly_one(HOVER, 4)
+    moves = [flight.fly_one(MOVE, r * 3 + c) for r, c in _MOVES]
     if any(m.failure or not m.arrived for m in moves):
         raise RuntimeError(f"calibration flight failed: {moves}")
     energies = [m.energy for m in moves]

@@ -238,12 +238,13 @@ def _mean_wind(d, x, y, z, c, steady, gust, gust_block, gust_left, last, has_las
 @njit(cache=True)
 def control(i, code, st, cols, c, R, ref, motors_on, A, integral, disturbance, last_vel,
             last_force, has_last, steady, axis, gust, gust_block, gust_left, turb, turb_block,
-            turb_left, last, has_last_pos, table, filled, keys, air):  # fmt: skip
+            turb_left, last, has_last_pos, table, filled, keys, air, wind):  # fmt: skip
     """The wind, observer, controller and drag of :meth:`BatchedFlight._control` for the
     drones of ``i`` whose ``code`` is FLY: ctrl and drag force written into their state rows,
     the air in the body frame into ``air`` (row k: the k-th of them), for
-    ``compiled_power.power``. Returns 0, or NEED_NOISE / NEED_COEFFICIENTS (``keys``
-    written) having changed nothing. ``c``: ``compiled_tick.control_constants``."""
+    ``compiled_power.power``, and the wind they fly in into ``wind`` (per drone). Returns 0,
+    or NEED_NOISE / NEED_COEFFICIENTS (``keys`` written) having changed nothing. ``c``:
+    ``compiled_tick.control_constants``."""
     q0, v0, a0, u0, x0 = cols[0], cols[1], cols[2], cols[3], cols[4]
     gusty, turbulent, min_air, per_log = c[0] != 0.0, c[34] != 0.0, c[35], c[36]
     gu, gv, gw, half_rho_cda, max_keys = c[37], c[38], c[39], c[33], c[c.size - 1]
@@ -296,6 +297,7 @@ def control(i, code, st, cols, c, R, ref, motors_on, A, integral, disturbance, l
             gust_u, gust_v, gust_w = gu * u, gv * (v1 + _SQRT3 * v2), gw * (z1 + _SQRT3 * z2)
             cx, cy = axis[d, 0], axis[d, 1]
             w0, w1, w2 = w0 + gust_u * cx - gust_v * cy, w1 + gust_u * cy + gust_v * cx, w2 + gust_w
+        wind[d, 0], wind[d, 1], wind[d, 2] = w0, w1, w2
         f[:4] = 0.0
         if motors_on[d]:
             act = st[d, a0 : a0 + 4]

@@ -106,7 +106,7 @@ class CompiledTick:
                 res["failure"][i[j]] = self.failures[kind[j] - K.BROKEN]
         if due:
             drones = self.lists[0, :due]
-            res["newly_seen"][drones] += f.camera.capture(drones)
+            res["newly_seen"][drones] += f.capture(drones)
         ids = self.lists[1, :go]
         if check:
             ended = False
@@ -130,7 +130,7 @@ class CompiledTick:
                 self.A, ctl.integral, ctl.disturbance, ctl.last_vel, ctl.last_force,
                 ctl.has_last, w.steady, w.axis, w.gust, w.gust_noise.block, w.gust_noise.left,
                 w.state, w.turb_noise.block, w.turb_noise.left, w.last, w.has_last, self.table,
-                self.filled, self.keys, self.air,
+                self.filled, self.keys, self.air, f.wind_now,
             )  # fmt: skip
             if need == 0:
                 break

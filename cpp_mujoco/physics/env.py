@@ -6,30 +6,29 @@ is where the outcome of an action comes from: the safety controller still decide
 same :class:`SafetyController`), but the move is flown, coverage is what the camera footprint
 saw, and the budget is the LiPo pack's remaining drawable energy in calibrated units (a calm
 move's energy drawn from the pack, I²R loss included; ``info`` adds ``state_of_charge`` and
-``battery_voltage_v``). That outcome goes
-through :meth:`GridMDP.apply`, the grid's own rules for reward, crash and termination.
+``battery_voltage_v``). The flight is the vector env's, a batch of one
+(:class:`~cpp_mujoco.physics.flight_episodes.FlightEpisodes`); its outcome goes through
+:meth:`GridMDP.apply`, the grid's own rules for reward, crash and termination.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import weakref
+from collections.abc import Callable
 from dataclasses import fields
 from typing import Any
 
+import mujoco
 import numpy as np
 
-from cpp_mujoco.grid.mdp import GridConfig, Outcome, StepOutcome
+from cpp_mujoco.grid.mdp import GridConfig, StepOutcome
 from cpp_mujoco.grid.single_env import SingleGridEnv
 from cpp_mujoco.maps import GridMap, load_map
-from cpp_mujoco.physics.arena import build_arena, compile_arena
-from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.flight import ActionResult, Flight
-from cpp_mujoco.physics.return_guard import ReturnGuard
+from cpp_mujoco.physics.flight_episodes import BUDGET_EXHAUSTED, FlightEpisodes
 
-BUDGET_EXHAUSTED = "budget exhausted before landing"
+__all__ = ["BUDGET_EXHAUSTED", "MuJoCoEnv", "make_configs", "split_kwargs"]
 
 
 def split_kwargs(kwargs: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -69,12 +68,12 @@ class MuJoCoEnv(SingleGridEnv):
     ``controller={"position_bw": 3}``, see :class:`~cpp_mujoco.physics.config.ControllerGains`)
     or :class:`GridConfig` fields (``max_budget=50``).
     ``reset(options={"start": (row, col), "budget": int})`` as the grid env.
-    The flight uses the default parts (:mod:`cpp_mujoco.physics.parts`) with these settings: the
-    budget unit is calibrated with exactly them.
 
-    ``model`` and ``data`` are the MuJoCo ``MjModel`` / ``MjData``. ``render_mode="rgb_array"``:
-    :meth:`render` returns the chase camera's (H, W, 3) frame (offscreen EGL/OSMesa, created on
-    the first call so envs that never render never touch GL); ``render_size`` is (width, height).
+    ``model`` is the MuJoCo ``MjModel``, ``data`` an ``MjData`` holding the drone's state after
+    every reset and step (and at every camera frame while :attr:`on_frame` is set: a callable
+    taking the env, for videos and recordings). ``render_mode="rgb_array"``: :meth:`render`
+    returns the chase camera's (H, W, 3) frame (offscreen EGL/OSMesa, created on the first call
+    so envs that never render never touch GL); ``render_size`` is (width, height).
     """
 
     def __init__(
@@ -88,15 +87,13 @@ class MuJoCoEnv(SingleGridEnv):
     ):
         self.config, self.grid_config = make_configs(config, grid_config, kwargs)
         super().__init__(load_map(map), self.grid_config, render_mode)
-        self.arena = build_arena(self.grid_map, self.config, self.grid_config.fov_side)
-        self.model = compile_arena(self.arena)
-        self.flight = Flight(self.model, self.grid_map, self.config, coverage=self.mdp.coverage)
-        self.data = self.flight.data
-        self.unit_energy = unit_energy(self.config)
-        drag = self.flight.drag.half_rho_cda  # the guard reads the wind off the same drag law
-        self.guard = (
-            ReturnGuard(self.grid_map, self.unit_energy, drag) if self.config.return_guard else None
+        self.episodes = FlightEpisodes(
+            self.grid_map, self.config, self.grid_config.fov_side, self.mdp
         )
+        self.model, self.flight = self.episodes.model, self.episodes.flight
+        self.data = mujoco.MjData(self.model)
+        self.unit_energy = self.episodes.unit_energy
+        self.guard = self.episodes.guards[0] if self.episodes.guards else None
         limit = (self.model.vis.global_.offwidth, self.model.vis.global_.offheight)
         size = tuple(render_size) if isinstance(render_size, (tuple, list)) else ()
         if len(size) != 2 or not all(
@@ -107,55 +104,36 @@ class MuJoCoEnv(SingleGridEnv):
             )
         self.render_size = size
         self._camera = None  # the chase camera, made by the first render()
-        self._last = ActionResult()
-        self._crash_reason: str | None = None
+        self._on_frame: Callable[[MuJoCoEnv], None] | None = None
+
+    @property
+    def on_frame(self) -> Callable[[MuJoCoEnv], None] | None:
+        """Called with the env after every camera frame of the flight, :attr:`data` current."""
+        return self._on_frame
+
+    @on_frame.setter
+    def on_frame(self, hook: Callable[[MuJoCoEnv], None] | None) -> None:
+        self._on_frame = hook
+        self.flight.on_frame = None if hook is None else self._frame
+
+    def _frame(self, drone: int) -> None:
+        self.flight.copy_data(drone, self.data)
+        self._on_frame(self)
+
+    @property
+    def footprint(self):
+        """Ground corners of the camera image now (None: the horizon is in view)."""
+        return self.flight.footprint(0)
 
     # ------------------------------------------------------------------ the backend's part
     def _on_reset(self) -> None:
-        row, col = divmod(int(self.mdp.position[0]), self.mdp.width)
-        capacity = float(self.mdp.budget[0]) * self.unit_energy
-        self.flight.reset(row, col, capacity, rng=self.np_random)
-        self.mdp.winds.set(0, self.config.wind_speed, self.config.wind_direction)  # observed
-        if self.guard is not None:
-            self.guard.reset()
-        self._last = ActionResult()
-        self._crash_reason = None
+        self.episodes.reset(self.mdp, np.array([0]), [self.np_random])
+        self.flight.copy_data(0, self.data)
 
     def _transition(self, action: int) -> StepOutcome:
-        """Safety decision, then the flight; its outcome goes through the grid's rules."""
-        m = self.mdp
-        cell = int(m.position[0])
-        if self.guard is not None:  # it may fly home instead of the policy's action
-            action = self.guard.filter(cell, int(action), self._remaining())
-        next_cell, rejected, lands = m.safety.decide(cell, action)
-        if lands:
-            result = self.flight.land(cell)
-        elif rejected:
-            result = self.flight.hover(cell)
-        else:
-            result = self.flight.move(int(next_cell))
-        self._last = result
-        if self.guard is not None:
-            force = getattr(self.flight.controller, "disturbance", None)  # a part may lack it
-            self.guard.observe(int(action), bool(rejected), result.energy, force)
-        budget = math.floor(self._remaining() / self.unit_energy + 1e-9)
-        out = m.apply(
-            Outcome(
-                next_cell=np.array([next_cell], dtype=np.int64),
-                rejected=np.array([rejected], dtype=bool),
-                landed=np.array([result.landed]),
-                spent=m.budget - budget,  # units: whatever the energy drawn amounts to
-                newly_seen=np.array([result.newly_seen], dtype=np.int64),  # the camera marked
-                failed=np.array([result.failure is not None]),
-            )
-        )
-        crashed = bool(out.crashed[0])
-        self._crash_reason = result.failure or (BUDGET_EXHAUSTED if crashed else None)
+        out = self.episodes.transition(self.mdp, np.array([action]), np.ones(1, dtype=bool))
+        self.flight.copy_data(0, self.data)
         return out
-
-    def _remaining(self) -> float:
-        """J of the budget left in the pack."""
-        return max(self.flight.capacity - self.flight.energy_used, 0.0)
 
     def render(self) -> np.ndarray | None:
         """The chase camera's view of the current state, (H, W, 3) uint8; None without a mode."""
@@ -178,18 +156,6 @@ class MuJoCoEnv(SingleGridEnv):
 
     # ------------------------------------------------------------------ views
     def _info(self) -> dict[str, Any]:
-        f = self.flight
-        return {
-            **super()._info(),
-            "energy_used_j": float(f.energy_used),
-            "flight_time_s": float(f.time),
-            "nfz_violations": int(f.nfz_violations),
-            "max_track_error_m": float(f.max_track_error),
-            "tracking_error_m": float(self._last.tracking_error),
-            "state_of_charge": float(f.battery.soc),
-            "battery_voltage_v": float(f.battery.voltage),
-            "crash_reason": self._crash_reason,
-            # the return guard chose this step's action; how often it did this episode
-            "guard_active": bool(self.guard is not None and self.guard.active),
-            "guard_takeovers": int(self.guard.takeovers if self.guard is not None else 0),
-        }
+        physics = {k: v[0] for k, v in self.episodes.infos().items()}
+        return {**super()._info(), **{k: v.item() if hasattr(v, "item") else v
+                                      for k, v in physics.items()}}  # fmt: skip

@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.batched_action import ActionResult
 from cpp_mujoco.physics.battery import CUTOFF, Battery, PackSpec
 from cpp_mujoco.physics.camera import CoverageCamera, Polygon
 from cpp_mujoco.physics.config import PhysicsConfig
@@ -34,19 +34,6 @@ from cpp_mujoco.physics.wind import QuadraticDrag, Wind
 
 Reference = Callable[[float], tuple]
 EMERGENCY_LANDING = "budget exhausted in flight: emergency landing where it was"
-
-
-@dataclass
-class ActionResult:
-    """What one macro-step did."""
-
-    duration: float = 0.0  # s of simulated time
-    energy: float = 0.0  # J drawn from the battery
-    newly_seen: int = 0  # target cells seen for the first time
-    arrived: bool = False  # reached the waypoint within tolerances (moves and landings)
-    landed: bool = False  # touched down on the landing gear
-    tracking_error: float = 0.0  # m, distance from the commanded point at the end
-    failure: str | None = None  # why the flight ended physically (battery, flip, …)
 
 
 def quat_to_mat(w: float, x: float, y: float, z: float) -> tuple[float, ...]:

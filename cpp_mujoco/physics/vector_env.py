@@ -1,7 +1,7 @@
 """The native batched physics env: ``gymnasium.make_vec("cpp_mujoco/MuJoCo-v0", num_envs=N)``.
 
-N quadrotors fly their grid actions together
-(:class:`~cpp_mujoco.physics.batched_flight.BatchedFlight`): one control tick for all of them
+N quadrotors fly their grid actions together (:class:`~.flight_episodes.FlightEpisodes` on
+:class:`~cpp_mujoco.physics.batched_flight.BatchedFlight`): one control tick for all of them
 (compiled with numba), their ``MjData`` stepped in one
 ``mujoco.batch`` call on ``threads`` threads. Everything around the flight is the grid vector
 env's (:class:`~cpp_mujoco.grid.vector_env.GridVectorEnv`): seeding
@@ -25,15 +25,12 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from cpp_mujoco.grid.mdp import GridConfig, Outcome, StepOutcome
+from cpp_mujoco.grid.mdp import GridConfig, StepOutcome
 from cpp_mujoco.grid.vector_env import GridVectorEnv
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.arena import build_arena, compile_arena
-from cpp_mujoco.physics.batched_flight import HOVER, LAND, MOVE, BatchedFlight
-from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.env import BUDGET_EXHAUSTED, make_configs
-from cpp_mujoco.physics.return_guard import ReturnGuard
+from cpp_mujoco.physics.env import make_configs
+from cpp_mujoco.physics.flight_episodes import FlightEpisodes
 
 
 class MuJoCoVectorEnv(GridVectorEnv):
@@ -62,31 +59,19 @@ class MuJoCoVectorEnv(GridVectorEnv):
             raise ValueError(f"threads must be a whole number >= 1, got {threads!r}")
         self.physics_config, grid = make_configs(config, grid_config, kwargs)
         super().__init__(num_envs, map, grid, autoreset_mode, render_mode)
-        c = self.physics_config
-        self.model = compile_arena(build_arena(self.grid_map, c, grid.fov_side))
-        self.flight = BatchedFlight(
-            self.model, self.grid_map, c, num_envs, self.mdp.coverage, threads
-        )
-        self.unit_energy = unit_energy(c)
-        drag = self.flight.one.drag.half_rho_cda
-        self.guards = (
-            [ReturnGuard(self.grid_map, self.unit_energy, drag) for _ in range(num_envs)]
-            if c.return_guard
-            else None
-        )
-        self.wind_directions = np.full(num_envs, float(c.wind_direction))
+        directions = None
         if wind_directions is not None:
-            given = np.asarray(wind_directions, dtype=float)
-            if given.shape != (num_envs,) or not np.isfinite(given).all():
+            directions = np.asarray(wind_directions, dtype=float)
+            if directions.shape != (num_envs,) or not np.isfinite(directions).all():
                 raise ValueError(
                     f"wind_directions must be {num_envs} finite degrees, got {wind_directions!r}"
                 )
-            for i in np.flatnonzero(given != self.wind_directions).tolist():
-                self.flight.set_wind_direction(i, given[i])
-            self.wind_directions = given
-        self._guard_active = np.zeros(num_envs, dtype=bool)
-        self._tracking = np.zeros(num_envs)
-        self._crash_reason = np.full(num_envs, None, dtype=object)
+        self.episodes = FlightEpisodes(
+            self.grid_map, self.physics_config, grid.fov_side, self.mdp, threads, directions
+        )
+        self.model, self.flight = self.episodes.model, self.episodes.flight
+        self.unit_energy, self.guards = self.episodes.unit_energy, self.episodes.guards
+        self.wind_directions = self.episodes.wind_directions
 
     def close(self, **kwargs: Any) -> None:
         self.flight.close()
@@ -94,60 +79,10 @@ class MuJoCoVectorEnv(GridVectorEnv):
 
     # ------------------------------------------------------------------ the backend's part
     def _on_reset(self, idx: np.ndarray) -> None:
-        m, c, rngs = self.mdp, self.physics_config, self.np_random
-        for i in idx.tolist():
-            row, col = divmod(int(m.position[i]), m.width)
-            self.flight.reset(i, row, col, float(m.budget[i]) * self.unit_energy, rngs[i])
-            m.winds.set(i, c.wind_speed, self.wind_directions[i])  # observed, as a single env
-            if self.guards is not None:
-                self.guards[i].reset()
-        self._guard_active[idx] = False
-        self._tracking[idx] = 0.0
-        self._crash_reason[idx] = None
-
-    def _remaining(self) -> np.ndarray:
-        f = self.flight
-        return np.maximum(f.capacity - f.energy_used, 0.0)
+        self.episodes.reset(self.mdp, idx, self.np_random)
 
     def _transition(self, actions: np.ndarray, active: np.ndarray) -> StepOutcome:
-        """Safety decision (and the return guard), then the flight of every active env; its
-        outcome goes through the grid's rules, exactly as :meth:`MuJoCoEnv._transition`."""
-        m, f = self.mdp, self.flight
-        cells = m.position
-        actions = actions.copy()
-        if self.guards is not None:
-            remaining = self._remaining()
-            for i in np.flatnonzero(active).tolist():
-                guard = self.guards[i]
-                actions[i] = guard.filter(int(cells[i]), int(actions[i]), float(remaining[i]))
-                self._guard_active[i] = guard.active
-        next_cell, rejected, lands = m.safety.decide(cells, actions)
-        kinds = np.where(lands, LAND, np.where(rejected, HOVER, MOVE))
-        result = f.fly(kinds, np.where(lands | rejected, cells, next_cell), active)
-        if self.guards is not None:
-            for i in np.flatnonzero(active).tolist():
-                self.guards[i].observe(
-                    int(actions[i]), bool(rejected[i]), float(result["energy"][i]),
-                    tuple(f.controller.disturbance[i]),
-                )  # fmt: skip
-        budget = np.floor(self._remaining() / self.unit_energy + 1e-9).astype(m.budget.dtype)
-        failed = result["failure"] != None  # noqa: E711 - elementwise over an object array
-        out = m.apply(
-            Outcome(
-                next_cell=np.where(active, next_cell, cells),
-                rejected=rejected & active,
-                landed=result["landed"],
-                spent=np.where(active, m.budget - budget, 0).astype(m.budget.dtype),
-                newly_seen=result["newly_seen"],
-                failed=failed,
-            ),
-            active,
-        )
-        self._tracking = np.where(active, result["tracking_error"], self._tracking)
-        for i in np.flatnonzero(active).tolist():
-            reason = result["failure"][i]
-            self._crash_reason[i] = reason or (BUDGET_EXHAUSTED if out.crashed[i] else None)
-        return out
+        return self.episodes.transition(self.mdp, actions, active)
 
     _NO_STATE = (
         "a physics env's state is MuJoCo's and its controllers': checkpoint the policy, "
@@ -162,21 +97,7 @@ class MuJoCoVectorEnv(GridVectorEnv):
 
     # ------------------------------------------------------------------ views
     def _infos(self) -> dict[str, np.ndarray]:
-        f = self.flight
         info = self.mdp.info()
-        info.update(
-            energy_used_j=f.energy_used.copy(),
-            flight_time_s=f.state[:, 0].copy(),
-            nfz_violations=f.nfz_violations.copy(),
-            max_track_error_m=f.max_track_error.copy(),
-            tracking_error_m=self._tracking.copy(),
-            state_of_charge=f.battery.soc.copy(),
-            battery_voltage_v=f.battery.voltage(),
-            crash_reason=self._crash_reason.copy(),
-            guard_active=self._guard_active.copy(),
-            guard_takeovers=np.array(
-                [g.takeovers for g in self.guards] if self.guards else [0] * self.num_envs
-            ),
-        )
+        info.update(self.episodes.infos())
         info.update({f"_{k}": self._all for k in list(info)})
         return info

@@ -61,11 +61,11 @@ def hud_state(
     return HudState(
         map_name=map_name,
         policy=policy,
-        time_s=f.time,
-        budget_left=max(f.capacity - f.energy_used, 0.0) / env.unit_energy,
+        time_s=float(env.data.time),
+        budget_left=max(f.capacity[0] - f.energy_used[0], 0.0) / env.unit_energy,
         budget_start=budget,
-        energy_used_j=float(f.energy_used),
-        state_of_charge=float(f.battery.soc),
+        energy_used_j=float(f.energy_used[0]),
+        state_of_charge=float(f.battery.soc[0]),
         coverage=float((seen & target).sum() / max(int(target.sum()), 1)),
         action=name,
         wind_speed=float(env.config.wind_speed),
@@ -111,13 +111,10 @@ class FlightReview:
         hud: bool = True,
     ):
         from cpp_mujoco.review.chase import chase_camera, onboard_camera
-        from cpp_mujoco.review.recording import WindProbe
         from cpp_mujoco.review.rendering import VideoWriter
         from cpp_mujoco.review.scenery import Scenery
 
         self.env, self.recorder, self.image_every = env, recorder, image_every
-        # the wind the flight draws, remembered for the recording (drawing again would advance it)
-        self.wind = WindProbe.attach(env.flight) if recorder is not None else None
         self.about, self.tap, self.on_chase_frame = about, tap, on_chase_frame
         self.fps = env.config.camera_rate
         scenery = Scenery(env.grid_map, env.config)  # the map's tiles: not in the physics model
@@ -168,8 +165,8 @@ class FlightReview:
                 chase = self.chase_hud.draw(chase, self._state(self.chase.rig.heading, status))
         return raw, onboard, chase
 
-    def on_frame(self, flight: Any) -> None:
-        data, recorder = self.env.data, self.recorder
+    def on_frame(self, env: Any) -> None:
+        data, recorder = env.data, self.recorder
         raw, onboard, chase = self._frames()
         if self.onboard_writer is not None:
             self.onboard_writer.write(onboard)
@@ -180,10 +177,11 @@ class FlightReview:
                 self.on_chase_frame(chase)
         if recorder is not None:
             t, body = float(data.time), self._body
-            poly = flight.last_footprint
+            poly = env.footprint
+            wind = env.flight.wind_now[0]  # what the last tick flew in (NaN before the first)
             recorder.log_pose(
                 t, data.xpos[body], data.xquat[body], np.asarray(poly) if poly else None,
-                wind=self.wind.last,
+                wind=tuple(wind.tolist()) if np.isfinite(wind).all() else None,
             )  # fmt: skip
             if self.count % self.image_every == 0:
                 recorder.log_camera(t, raw)

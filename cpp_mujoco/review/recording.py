@@ -35,9 +35,9 @@ from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.review.grid_image import grid_image, zone_colors
-from cpp_mujoco.review.recording_tools import WindProbe, blueprint, compact
+from cpp_mujoco.review.recording_tools import blueprint, compact
 
-__all__ = ["MissionRecorder", "WindProbe", "batcher_config", "blueprint"]
+__all__ = ["MissionRecorder", "batcher_config", "blueprint"]
 
 _WORLD = PhysicsConfig()  # the default scale (a MuJoCo mission passes its own)
 

@@ -13,7 +13,6 @@ import subprocess
 import sys
 import warnings
 from pathlib import Path
-from typing import Any
 
 import rerun.blueprint as rrb
 
@@ -60,30 +59,6 @@ def blueprint(battery: bool = False, wind: bool = False) -> rrb.Blueprint:
         rrb.TimePanel(timeline="sim_time"),
         collapse_panels=True,
     )
-
-
-class WindProbe:
-    """A wind model's stand-in that remembers the last velocity it returned, so a recorder fed
-    at the camera rate can log the wind the flight actually drew (steady + gusts + turbulence)
-    without drawing it again (drawing advances a stateful model). ``attach(flight)`` puts it
-    in the flight's ``wind`` slot; every other attribute is the wrapped model's."""
-
-    def __init__(self, wind: Any) -> None:
-        self.wind = wind
-        self.last: tuple[float, float, float] | None = None
-
-    @classmethod
-    def attach(cls, flight: Any) -> WindProbe:
-        probe = cls(flight.wind)
-        flight.wind = probe
-        return probe
-
-    def velocity(self, time: float = 0.0, position: Any = None) -> tuple[float, float, float]:
-        self.last = self.wind.velocity(time, position)
-        return self.last
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.wind, name)
 
 
 def rerun_cli() -> str:
