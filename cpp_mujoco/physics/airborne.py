@@ -77,19 +77,18 @@ class AirborneSteps:
         self.floor = ground_top(model) + reach_below(model, body) + CLEARANCE
         self.dt = model.opt.timestep
         self.airborne = np.zeros(len(pos), dtype=bool)  # the models the batch holds now
+        self._clear = np.zeros(len(pos), dtype=bool)
 
     def clear(self, drones: np.ndarray, nstep: int) -> np.ndarray:
         """Whether each of ``drones`` stays clear of the ground for ``nstep`` substeps."""
-        out = np.empty(len(drones), dtype=bool)
-        clear_of_ground(np.asarray(drones, np.int64), self.pos, self.vel, self.floor,
-                        nstep * self.dt, out)  # fmt: skip
+        out = self._clear[: len(drones)]
+        clear_of_ground(drones, self.pos, self.vel, self.floor, nstep * self.dt, out)
         return out
 
     def before_step(self, drones: np.ndarray, nstep: int) -> None:
         """Set the models of ``drones`` for their next ``nstep`` substeps (one C call to the
         batch, and only when some drone changes side)."""
-        clear = self.clear(drones, nstep)
-        if not changed(np.asarray(drones, np.int64), clear, self.airborne):
+        if not changed(drones, self.clear(drones, nstep), self.airborne):
             return
         ground, air = self.models
         self.sims.set_models([air if a else ground for a in self.airborne.tolist()])

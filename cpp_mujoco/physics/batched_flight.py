@@ -196,7 +196,7 @@ class BatchedFlight:
         next tick's failure check reads that count, as the single flight does."""
         if self.air is not None:
             self.air.before_step(drones, nstep)
-        self.sims.step(drones, nstep)
+        self.sims.step(None if drones.size == self.n else drones, nstep)  # None: all, no checks
 
     def _ground_contact(self, i: int) -> bool | None:
         """:func:`ground_contact` of drone ``i``'s last step; its ``MjData`` is copied out of the
@@ -279,13 +279,15 @@ class BatchedFlight:
         """The tick loop of :meth:`Flight._fly` over the drones still flying: one control tick
         for all of them (:meth:`_tick`), then their physics steps (one C call)."""
         k, dt, tick, q = self.k, self.dt, self._tick, self.cols[0].start
-        while np.count_nonzero(a.flying):
+        i = np.flatnonzero(a.flying)
+        while i.size:
             if self.trace is not None and a.flying[0]:
                 self.trace.append(tuple(self.state[0, [0, q, q + 1, q + 2]].tolist()))
-            go = tick(np.flatnonzero(a.flying), a)
+            go = tick(i, a)
             if go.size:
                 self._step(go, k)
                 a.t[go] += dt
+            i = np.flatnonzero(a.flying)
 
     def _landing_done(self, d: int, a: MacroActions) -> bool:
         """Whether landing or falling drone ``d``'s action ends (contact, time limit)."""

@@ -88,18 +88,39 @@ class CompiledTick:
         self.air, self.flags = np.zeros((n, 3)), np.zeros(n, dtype=np.int8)
         self.table, self.filled = np.zeros((0, 16)), np.zeros(0, dtype=bool)
         self.A = np.ascontiguousarray(flight.controller.A_inv)
+        self._action: MacroActions | None = None  # the action the bound arguments are of
+
+    def _bind(self, a: MacroActions) -> None:
+        """The kernels' arguments but the drones and their codes, for action ``a``: arrays that
+        live as long as the action (bound once, not gathered every tick)."""
+        f, refs, ctl, w, b = self.f, self.f.refs, self.f.controller, self.f.wind, self.f.battery
+        self._action = a
+        self._sense = (
+            f.state, self.cols[0], self.cols[1], self.sense_c, f.motors_on, f._bad, f._bad0,
+            f.no_fly, f.nfz_violations, f._ncon, f.camera.next_frame, refs.start, refs.delta,
+            refs.duration, refs.descent, refs.end, a.t, a.t0, a.goal, a.nominal, a.limit,
+            a.arrive, a.land, a.worst2, a.flying, a.res["arrived"], self.R, self.ref,
+        )  # fmt: skip
+        self._control_args = (
+            f.state, self.cols, self.control_c, self.R, self.ref, f.motors_on,
+            self.A, ctl.integral, ctl.disturbance, ctl.last_vel, ctl.last_force,
+            ctl.has_last, w.steady, w.axis, w.gust, w.gust_noise.block, w.gust_noise.left,
+            w.state, w.turb_noise.block, w.turb_noise.left, w.last, w.has_last, self.table,
+            self.filled, self.keys, self.air, f.wind_now,
+        )  # fmt: skip
+        self._power = (
+            f.state, self.cols, self.control_c, self.air, f.motors_on, a.t, f.energy_used,
+            f.capacity, f.energy_of.decay, self.ff, b.charge_c, b.soc, b.current, b.drawn_j,
+            b.load_j, b.loss_j, b.below_cutoff, b._f_soc, self.flags,
+        )  # fmt: skip
 
     def __call__(self, i: np.ndarray, a: MacroActions) -> np.ndarray:
         K, f = self.k, self.f
-        m, res, refs = i.size, a.res, f.refs
+        if a is not self._action:
+            self._bind(a)
+        m, res = i.size, a.res
         code = self.code[:m]
-        failed, due, go, check = K.sense(
-            i, f.state, self.cols[0], self.cols[1], self.sense_c, f.motors_on, f._bad, f._bad0,
-            f.no_fly, f.nfz_violations, f._ncon, f.camera.next_frame, refs.start, refs.delta,
-            refs.duration, refs.descent, refs.end, a.t, a.t0, a.goal, a.nominal, a.limit,
-            a.arrive, a.land, a.worst2, a.flying, res["arrived"], self.R, self.ref, code,
-            self.lists,
-        )  # fmt: skip
+        failed, due, go, check = K.sense(i, *self._sense, code, self.lists)
         if failed:
             kind = code & 7
             for j in np.flatnonzero((kind >= K.BROKEN) & (kind <= K.DIVERGED)).tolist():
@@ -123,15 +144,9 @@ class CompiledTick:
     def _control(self, i: np.ndarray, go: np.ndarray, code: np.ndarray, a: MacroActions) -> None:
         """The inputs of the drones ``go`` (those of ``i`` whose ``code`` is FLY)."""
         K, f = self.k, self.f
-        ctl, w, b = f.controller, f.wind, f.battery
+        w, b = f.wind, f.battery
         while True:
-            need = K.control(
-                i, code, f.state, self.cols, self.control_c, self.R, self.ref, f.motors_on,
-                self.A, ctl.integral, ctl.disturbance, ctl.last_vel, ctl.last_force,
-                ctl.has_last, w.steady, w.axis, w.gust, w.gust_noise.block, w.gust_noise.left,
-                w.state, w.turb_noise.block, w.turb_noise.left, w.last, w.has_last, self.table,
-                self.filled, self.keys, self.air, f.wind_now,
-            )  # fmt: skip
+            need = K.control(i, code, *self._control_args)
             if need == 0:
                 break
             if need == K.NEED_NOISE:  # each drone's gust block before its turbulence's
@@ -141,11 +156,8 @@ class CompiledTick:
                     w.turb_noise.refill(go, 5)
             else:
                 self._tabulate(self.keys[: i.size][code & 7 == K.FLY])
-        flagged = self.p.power(
-            go, f.state, self.cols, self.control_c, self.air, f.motors_on, a.t, f.energy_used,
-            f.capacity, f.energy_of.decay, self.ff, b.charge_c, b.soc, b.current, b.drawn_j,
-            b.load_j, b.loss_j, b.below_cutoff, b._f_soc, self.flags,
-        )  # fmt: skip
+                self._bind(a)  # the table may have grown into new arrays
+        flagged = self.p.power(go, *self._power)
         if flagged:
             flags = self.flags[: go.size]
             b.failure[go[flags == 1]] = OVERLOAD
