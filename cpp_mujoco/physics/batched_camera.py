@@ -43,12 +43,10 @@ class BatchedCamera:
         fovy = float(model.cam_fovy[cam])
         self.rays = np.array(corner_rays(fovy))  # (4, 3)
         self.cam_xpos, self.cam_xmat, self.clock = cam_xpos[:, cam], cam_xmat[:, cam], clock
-        self.geo = geo
         self.period = 1.0 / config.camera_rate
         self.cos_max_tilt = math.cos(math.radians(config.max_frame_tilt_deg))
         self.nominal_half = config.altitude * math.tan(math.radians(fovy) / 2) + 1e-6
         centers = geo.centers()
-        self.cx, self.cy = centers[:, 0], centers[:, 1]
         self.target = np.asarray(target, dtype=bool).reshape(-1)
         self.coverage = coverage
         self.min_down = min_down
@@ -58,8 +56,8 @@ class BatchedCamera:
         span = math.floor(2 * self.nominal_half / geo.cell_size + 2e-6) + 2
         self._kr, self._kc = min(span, geo.height), min(span, geo.width)
         # a centre's x depends on its column only, y on its row: the same doubles as centers()
-        self._x_of_col = self.cx[: geo.width].copy()
-        self._y_of_row = self.cy[:: geo.width].copy()
+        self._x_of_col = centers[: geo.width, 0].copy()
+        self._y_of_row = centers[:: geo.width, 1].copy()
         self._constants = np.array([
             self.cos_max_tilt, min_down, self.nominal_half, 1.0 / geo.cell_size, geo.height,
             geo.width, self._kr, self._kc,

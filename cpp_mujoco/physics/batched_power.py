@@ -25,7 +25,6 @@ class BatchedEnergy:
     lag's per-step weights and the forward-flight ratio's model (None: hover power)."""
 
     def __init__(self, scalar: IntervalEnergy):
-        self.s = scalar
         self.decay = np.array(scalar.decay)
         self.ff = scalar.forward
 
