@@ -19,6 +19,6 @@ if "cpp_mujoco/Grid-v0" not in registry:
 if "cpp_mujoco/MuJoCo-v0" not in registry:
     register(
         id="cpp_mujoco/MuJoCo-v0",
-        entry_point="cpp_mujoco.physics.env:MuJoCoEnv",
-        vector_entry_point="cpp_mujoco.physics.vector_env:MuJoCoVectorEnv",
+        entry_point="cpp_mujoco.physics.envs.single:MuJoCoEnv",
+        vector_entry_point="cpp_mujoco.physics.envs.vector:MuJoCoVectorEnv",
     )

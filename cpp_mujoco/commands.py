@@ -18,7 +18,7 @@ PLANNER_NAMES = (
     "random", "safe-greedy", "beam-search", "safe-greedy-wind", "beam-search-wind", "optimal",
 )  # fmt: skip
 DEFAULT_PLANNERS = PLANNER_NAMES[:3]
-# Dryden turbulence levels (MIL-F-8785C), the same as cpp_mujoco.physics.turbulence.LEVELS; named
+# Dryden turbulence levels (MIL-F-8785C), the same as physics.air.turbulence.LEVELS; named
 # here so that building the parser imports no numerical module (a test keeps them equal)
 TURBULENCE_LEVELS = ("none", "light", "moderate", "severe")
 

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 import cpp_mujoco
-from cpp_mujoco.physics.env import MuJoCoEnv
+from cpp_mujoco.physics.envs.single import MuJoCoEnv
 
 
 def rate(seconds: float, map_name: str = "A", seed: int = 0) -> float:

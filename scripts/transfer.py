@@ -18,9 +18,9 @@ from pathlib import Path
 from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.maps import bundled_maps, load_map
 from cpp_mujoco.physics.action_energy import KINDS, action_energy_table
+from cpp_mujoco.physics.air.turbulence import LEVELS
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.turbulence import LEVELS
 from cpp_mujoco.review.plots import coverage_figure
 from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (

@@ -190,7 +190,7 @@ def test_the_crash_reward_is_what_a_training_crash_pays(tmp_path):
     np.testing.assert_allclose(rewards[1] - rewards[0], -450.0)
     physics = dataclasses.replace(cfg, backend="mujoco", num_envs=5, physics_wind_speed=0.0)
     from cpp_mujoco.maps import load_map
-    from cpp_mujoco.physics.mixed_wind_vector_env import MixedWindVectorEnv
+    from cpp_mujoco.physics.envs.mixed_wind import MixedWindVectorEnv
 
     flown = MixedWindVectorEnv.for_training(physics, load_map("A"))
     assert [env.mdp.config.rewards.crash for env in flown.envs] == [-600.0]

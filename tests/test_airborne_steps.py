@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cpp_mujoco.physics.airborne import air_model, ground_top, reach_below
-from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
+from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
 from tests.twin_flights import (
     FAILURE_MOVES,
     MAP,

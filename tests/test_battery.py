@@ -9,7 +9,10 @@ from scipy.integrate import quad
 import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.grid.actions import NORTH, SOUTH
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.battery import (
+from cpp_mujoco.physics.calibration import calibration, hover_power
+from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.envs.single import MuJoCoEnv
+from cpp_mujoco.physics.power.battery import (
     CUTOFF,
     OVERLOAD,
     Battery,
@@ -18,9 +21,6 @@ from cpp_mujoco.physics.battery import (
     cell_ocv_integral,
     pack_current,
 )
-from cpp_mujoco.physics.calibration import calibration, hover_power
-from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.env import MuJoCoEnv
 from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
 from cpp_mujoco.review.recording import MissionRecorder
 from tests.test_review import rrd_entities

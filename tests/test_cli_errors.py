@@ -176,7 +176,7 @@ TINY = GridMap.from_ascii(["L.T", "..."], name="tiny")  # one landing cell: one 
 
 def test_turbulence_levels_are_the_models():
     from cpp_mujoco.commands import TURBULENCE_LEVELS
-    from cpp_mujoco.physics.turbulence import LEVELS
+    from cpp_mujoco.physics.air.turbulence import LEVELS
 
     assert TURBULENCE_LEVELS == LEVELS
 

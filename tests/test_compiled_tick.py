@@ -7,9 +7,12 @@ import contextlib
 
 import numpy as np
 
-from cpp_mujoco.physics import airborne, batched_camera, compiled_control, compiled_power
-from cpp_mujoco.physics.battery import CUTOFF
-from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
+from cpp_mujoco.physics import airborne
+from cpp_mujoco.physics.control import kernels as compiled_control
+from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
+from cpp_mujoco.physics.power import kernels as compiled_power
+from cpp_mujoco.physics.power.battery import CUTOFF
+from cpp_mujoco.physics.sensing import frames as batched_camera
 from tests.twin_flights import (
     FAILURE_MOVES,
     MAP,

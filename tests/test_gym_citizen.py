@@ -60,7 +60,7 @@ def test_vector_env_rejects_float_actions():
 
 # ----------------------------------------------------------------------------- rendering
 def test_physics_render_mode_is_checked_and_lazy():
-    from cpp_mujoco.physics.env import MuJoCoEnv
+    from cpp_mujoco.physics.envs.single import MuJoCoEnv
 
     with pytest.raises(ValueError, match="render_mode"):
         MuJoCoEnv(map=SMALL, render_mode="depth")

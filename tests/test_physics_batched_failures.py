@@ -12,8 +12,8 @@ import numpy as np
 import cpp_mujoco  # noqa: F401  (registers the envs)
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.battery import CUTOFF
-from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
+from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
+from cpp_mujoco.physics.power.battery import CUTOFF
 
 OPEN = GridMap.from_ascii(["TTTTT", "TTTTT", "TTLTT", "TTTTT", "TTTTT"], name="open")
 KEYS = ("position", "budget", "landed", "crashed", "energy_used_j", "flight_time_s",

@@ -12,8 +12,8 @@ import torch
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.grid.wind import wind_velocity
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.mixed_wind_vector_env import MixedWindVectorEnv
-from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
+from cpp_mujoco.physics.envs.mixed_wind import MixedWindVectorEnv
+from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
 
 # an open 5×6 map: landing strip in the middle row, targets around, one no-fly cell
 MAP = GridMap.from_ascii(["TTTTTT", "T..N.T", "TLLLLT", "T....T", "TTTTTT"], name="open")

@@ -13,7 +13,7 @@ from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.arena import GridGeometry, build_arena, compile_arena
 from cpp_mujoco.physics.calibration import calibration, unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.env import MuJoCoEnv
+from cpp_mujoco.physics.envs.single import MuJoCoEnv
 from cpp_mujoco.physics.flight import EMERGENCY_LANDING, Flight
 
 CONFIG = PhysicsConfig()

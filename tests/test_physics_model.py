@@ -7,15 +7,20 @@ import numpy as np
 import pytest
 
 from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.physics.air.wind import QuadraticDrag, Wind
 
 # dm_control's mjcf as the arena imports it (without dm_control's headless GLFW warning)
 from cpp_mujoco.physics.arena import GridGeometry, build_arena, camera_fovy, compile_arena, mjcf
-from cpp_mujoco.physics.camera import cells_in_footprint, corner_rays, footprint, inside_polygon
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.energy import IntervalEnergy, PowerModel
 from cpp_mujoco.physics.flight import Flight
+from cpp_mujoco.physics.power.rotor import IntervalEnergy, PowerModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
-from cpp_mujoco.physics.wind import QuadraticDrag, Wind
+from cpp_mujoco.physics.sensing.camera import (
+    cells_in_footprint,
+    corner_rays,
+    footprint,
+    inside_polygon,
+)
 from cpp_mujoco.review.scenery import Scenery
 
 CONFIG = PhysicsConfig()
@@ -78,7 +83,7 @@ REFERENCE_TIME_S = 21.040000000000365
 
 
 def test_a_flown_episode_is_bit_identical_to_the_tiled_model():
-    from cpp_mujoco.physics.env import MuJoCoEnv
+    from cpp_mujoco.physics.envs.single import MuJoCoEnv
 
     env = MuJoCoEnv(map="A", wind_speed=5.0, wind_direction=60.0, gust_std=1.5)
     env.reset(seed=0, options={"budget": 30})

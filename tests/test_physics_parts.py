@@ -9,15 +9,15 @@ import pytest
 
 import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.air.wind import Wind
 from cpp_mujoco.physics.arena import build_arena, compile_arena
-from cpp_mujoco.physics.camera import cells_in_footprint, inside_polygon
 from cpp_mujoco.physics.config import ControllerGains, PhysicsConfig
-from cpp_mujoco.physics.controller import GeometricController
+from cpp_mujoco.physics.control.controller import GeometricController
 from cpp_mujoco.physics.flight import Flight
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.physics.parts import Controller, WindModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
-from cpp_mujoco.physics.wind import Wind
+from cpp_mujoco.physics.sensing.camera import cells_in_footprint, inside_polygon
 from cpp_mujoco.review.scenery import Scenery
 
 OPEN = GridMap.from_ascii(["TTT", "TLT", "TTT"], name="open3")

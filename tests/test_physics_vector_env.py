@@ -9,7 +9,7 @@ import pytest
 import cpp_mujoco  # noqa: F401  (registers the envs)
 from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
+from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
 
 # an open 5×6 map: landing strip in the middle row, targets around, one no-fly cell
 MAP = GridMap.from_ascii(["TTTTTT", "T..N.T", "TLLLLT", "T....T", "TTTTTT"], name="open")

@@ -15,13 +15,13 @@ from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.calibration import _airframe, unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.energy import (
+from cpp_mujoco.physics.flight import Flight, quat_to_mat
+from cpp_mujoco.physics.power.rotor import (
     ForwardFlightPower,
     PowerModel,
     air_in_body,
     level_flight_power,
 )
-from cpp_mujoco.physics.flight import Flight, quat_to_mat
 
 GRID = GridMap.from_ascii(["GGG", "GGG", "GGG"], name="power")
 RHO = 1.225

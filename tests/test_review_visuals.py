@@ -160,7 +160,7 @@ def test_hud_lines_say_the_state():
 
 
 def test_hud_state_reads_the_env_as_its_info_does():
-    from cpp_mujoco.physics.env import MuJoCoEnv
+    from cpp_mujoco.physics.envs.single import MuJoCoEnv
     from cpp_mujoco.review.flight_review import hud_state
 
     env = MuJoCoEnv(map=SMALL, wind_speed=3.0, wind_direction=0.0)
@@ -224,7 +224,7 @@ def test_wind_arrow_points_the_way_the_wind_blows_in_the_picture():
 def test_covered_cells_turn_lighter_and_nothing_else_changes(gl):
     """A frame late in a mission against the first, seen by the arena's fixed overview camera
     (the chase camera moves): exactly the pixels of cells covered in between changed, lighter."""
-    from cpp_mujoco.physics.env import MuJoCoEnv
+    from cpp_mujoco.physics.envs.single import MuJoCoEnv
     from cpp_mujoco.review.rendering import OffscreenCamera
 
     env = MuJoCoEnv(map="A")
@@ -260,7 +260,7 @@ def test_covered_cells_turn_lighter_and_nothing_else_changes(gl):
 
 
 def test_the_airframe_is_drawn_large_where_the_uav_is(gl):
-    from cpp_mujoco.physics.env import MuJoCoEnv
+    from cpp_mujoco.physics.envs.single import MuJoCoEnv
     from cpp_mujoco.review.chase import chase_camera
 
     env = MuJoCoEnv(map="A")
@@ -282,7 +282,7 @@ def test_the_airframe_is_drawn_large_where_the_uav_is(gl):
 def test_rendering_leaves_the_flight_unchanged(gl, tmp_path):
     """Fly the same actions with every camera rendering every frame (and ``render()`` every
     step) and with none: same states, same energies, same infos."""
-    from cpp_mujoco.physics.env import MuJoCoEnv
+    from cpp_mujoco.physics.envs.single import MuJoCoEnv
     from cpp_mujoco.review.flight_review import FlightReview
 
     runs = []

@@ -15,7 +15,7 @@ from cpp_mujoco.grid.mdp import GridMDP, Outcome, Rewards
 from cpp_mujoco.grid.single_env import SingleGridEnv
 from cpp_mujoco.grid.vector_env import GridVectorEnv
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.env import MuJoCoEnv
+from cpp_mujoco.physics.envs.single import MuJoCoEnv
 
 SMALL = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="small")
 R = Rewards()

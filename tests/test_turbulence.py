@@ -12,11 +12,11 @@ from scipy.special import gammainc
 import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics import turbulence as tb
+from cpp_mujoco.physics.air import turbulence as tb
+from cpp_mujoco.physics.air.turbulence import DrydenParams, DrydenTurbulence, correlation, measure
+from cpp_mujoco.physics.air.wind import Wind
 from cpp_mujoco.physics.calibration import calibrate
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.turbulence import DrydenParams, DrydenTurbulence, correlation, measure
-from cpp_mujoco.physics.wind import Wind
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
 
 TINY = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="tiny")

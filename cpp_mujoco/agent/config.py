@@ -16,8 +16,8 @@ from cpp_mujoco.grid.mdp import GridConfig, Rewards
 from cpp_mujoco.grid.spaces import MAX_WIND
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.grid.wind import COMPASS, GridWind
+from cpp_mujoco.physics.air.turbulence import check_level
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.turbulence import check_level
 from cpp_mujoco.planners import WIND_PLANNERS
 
 BACKENDS = ("grid", "mujoco")  # where training episodes are flown: the MDP or physics
@@ -206,7 +206,7 @@ class TrainConfig:
 
     def physics_conditions(self) -> list[tuple[dict, int]]:
         """The weathers of a ``backend="mujoco"`` run: ``[(PhysicsConfig keywords, slots), …]``
-        (:class:`~cpp_mujoco.physics.mixed_wind_vector_env.MixedWindVectorEnv`): calm slots
+        (:class:`~cpp_mujoco.physics.envs.mixed_wind.MixedWindVectorEnv`): calm slots
         first, then the windy ones split evenly over the directions (the first get one more)."""
         n, dirs = self.num_envs, self.physics_wind_directions
         calm = n if not self.physics_wind_speed else int(self.physics_calm_share * n + 0.5)

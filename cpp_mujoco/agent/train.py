@@ -6,7 +6,7 @@ sampled from the soft-max policy) followed by ``updates_per_step`` gradient upda
 and ``training.png`` (the paper's Fig. 4). ``checkpoint.pt`` (resumable) and ``agent.pt`` are
 written atomically every ``checkpoint_every`` updates, every ``checkpoint_minutes`` and when
 SIGINT/SIGTERM stops the run; ``best.pt`` keeps the best evaluated agent.
-``backend="mujoco"`` fine-tunes in physics (:mod:`~cpp_mujoco.physics.mixed_wind_vector_env`:
+``backend="mujoco"`` fine-tunes in physics (:mod:`~cpp_mujoco.physics.envs.mixed_wind`:
 several weathers at once); evaluation stays on the grid (cheap). A resume ends the episodes in
 flight at their last stored step (MuJoCo's state is not saved) and starts fresh ones.
 """
@@ -65,7 +65,7 @@ class Trainer:
         self.grid_map = load_map(c.map)
         self.grid_config = c.grid_config
         if c.backend == "mujoco":  # MuJoCo is imported only then
-            from cpp_mujoco.physics.mixed_wind_vector_env import MixedWindVectorEnv
+            from cpp_mujoco.physics.envs.mixed_wind import MixedWindVectorEnv
 
             self.env = MixedWindVectorEnv.for_training(c, self.grid_map)
         else:

@@ -11,14 +11,14 @@ from typing import TYPE_CHECKING
 from cpp_mujoco.physics.config import ControllerGains, PhysicsConfig
 
 if TYPE_CHECKING:
-    from cpp_mujoco.physics.env import MuJoCoEnv
+    from cpp_mujoco.physics.envs.single import MuJoCoEnv
 
 __all__ = ["ControllerGains", "MuJoCoEnv", "PhysicsConfig"]
 
 
 def __getattr__(name: str):
     if name == "MuJoCoEnv":
-        from cpp_mujoco.physics.env import MuJoCoEnv
+        from cpp_mujoco.physics.envs.single import MuJoCoEnv
 
         return MuJoCoEnv
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -4,7 +4,8 @@ Why this shape: a single :class:`~cpp_mujoco.physics.flight.Flight` spends about
 Python control tick as MuJoCo spends on the five physics steps between ticks. Here the tick's
 work (references, controller, energy, battery, wind, drag, failure checks) is done once for all
 drones, in three compiled kernels (:mod:`~.compiled_tick`) over the state arrays of
-:mod:`~.batched_control` and :mod:`~.batched_power`, and the physics of all drones is one call of
+:mod:`~cpp_mujoco.physics.control.state` and :mod:`~cpp_mujoco.physics.power.state`, and the
+physics of all drones is one call of
 ``mujoco.batch.Batch.step`` (MuJoCo ≥ 3.17): C loops over the drones on ``threads`` threads
 without the GIL. The batch is *persistent*: each drone keeps its own ``MjData`` inside it, and its
 state row (:attr:`BatchedFlight.state`, ``mjSTATE_INTEGRATION``) carries the solver's warmstart
@@ -33,14 +34,14 @@ from mujoco.batch import Batch
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.airborne import AirborneSteps
 from cpp_mujoco.physics.batched_action import HOVER, LAND, MOVE, ActionResult, MacroActions
-from cpp_mujoco.physics.batched_camera import BatchedCamera
-from cpp_mujoco.physics.batched_control import BatchedController, References
-from cpp_mujoco.physics.batched_power import BatchedBattery, BatchedEnergy, BatchedWind
-from cpp_mujoco.physics.battery import CUTOFF
-from cpp_mujoco.physics.camera import Polygon, footprint
 from cpp_mujoco.physics.compiled_tick import CompiledTick
 from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.control.state import BatchedController, References
 from cpp_mujoco.physics.flight import EMERGENCY_LANDING, Flight, ground_contact
+from cpp_mujoco.physics.power.battery import CUTOFF
+from cpp_mujoco.physics.power.state import BatchedBattery, BatchedEnergy, BatchedWind
+from cpp_mujoco.physics.sensing.camera import Polygon, footprint
+from cpp_mujoco.physics.sensing.frames import BatchedCamera
 
 _ROW = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # the batch's state rows
 

@@ -16,7 +16,7 @@ import numpy as np
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.airborne import air_model
 from cpp_mujoco.physics.calibration import calibration
-from cpp_mujoco.physics.env import MuJoCoEnv
+from cpp_mujoco.physics.envs.single import MuJoCoEnv
 
 
 def benchmark_physics(seconds: float = 5.0, map: str = "A", seed: int = 0) -> dict:  # noqa: A002
@@ -280,7 +280,7 @@ def benchmark_mixed(seconds: float = 15.0, num_envs: int = 64, map: str = "B") -
     moderate from N/E/S/W) with the four directions in one batch, against the same weathers
     kept in five batches (a condition key that changes nothing keeps them apart); interleaved,
     best of two rounds."""
-    from cpp_mujoco.physics.mixed_wind_vector_env import MixedWindVectorEnv
+    from cpp_mujoco.physics.envs.mixed_wind import MixedWindVectorEnv
 
     calm, rest = num_envs // 5, num_envs - num_envs // 5
     shares = [rest // 4 + (k < rest % 4) for k in range(4)]

@@ -1,6 +1,6 @@
 """The energy of one budget unit: a nominal one-cell move in calm air, measured by flying it.
 
-The energy is what the move draws from the LiPo pack (:mod:`~cpp_mujoco.physics.battery`): the
+The energy is what the move draws from the LiPo pack (:mod:`~cpp_mujoco.physics.power.battery`): the
 rotors' electrical energy plus the pack's I²R loss, with the pack held at the middle of the
 budget's state-of-charge window.
 
@@ -30,7 +30,7 @@ from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.batched_action import HOVER, MOVE
 from cpp_mujoco.physics.batched_flight import BatchedFlight
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.energy import PowerModel
+from cpp_mujoco.physics.power.rotor import PowerModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
 
 _MEMO: dict[str, dict] = {}
@@ -138,10 +138,18 @@ def unit_energy(config: PhysicsConfig) -> float:
     return float(calibration(config)["unit_energy_j"]) * (1.0 + config.unit_margin)
 
 
+# the modules and folders whose code flies a calibration move
+FLIGHT_SOURCES = (
+    "flight.py", "batched_flight.py", "compiled_tick.py", "batched_action.py", "airborne.py",
+    "arena.py", "quadrotor.py", "geometry.py", "config.py",
+)  # fmt: skip
+FLIGHT_PARTS = ("control", "air", "power", "sensing")
+
+
 def _source_digest() -> str:
     """The code that flies a move: a change to it must invalidate cached units (``config.py``
     too: default gains are left out of the key, their values are in its source)."""
     here = Path(__file__).resolve().parent
-    names = ("controller.py", "flight.py", "energy.py", "wind.py", "arena.py", "quadrotor.py",
-             "geometry.py", "config.py", "battery.py")  # fmt: skip
-    return "".join((here / n).read_text() for n in names)
+    parts = [here / n for n in FLIGHT_SOURCES]
+    parts += sorted(f for d in FLIGHT_PARTS for f in (here / d).glob("*.py"))
+    return "".join(f.read_text() for f in parts)

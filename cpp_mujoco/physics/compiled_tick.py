@@ -1,5 +1,5 @@
 """The batched flight's control tick: the Python around the compiled kernels of
-:mod:`~cpp_mujoco.physics.compiled_control` and :mod:`~cpp_mujoco.physics.compiled_power`.
+:mod:`~cpp_mujoco.physics.control.kernels` and :mod:`~cpp_mujoco.physics.power.kernels`.
 
 Why: as numpy arrays a tick is ≈ 150 calls over short arrays and costs about half as long as
 MuJoCo's five physics steps between ticks at 128 drones (more than them at one drone); compiled,
@@ -9,7 +9,7 @@ The kernels flag what stays in Python, drone by drone and rarely: the failure me
 camera frames due, the ground contacts and time limits of landing or falling drones, the
 battery's overload and failsafe, a noise block that runs out, turbulence coefficients not yet
 tabled. Everything else of a tick is arithmetic over the state arrays of
-:mod:`~.batched_control` and :mod:`~.batched_power`.
+:mod:`~cpp_mujoco.physics.control.state` and :mod:`~cpp_mujoco.physics.power.state`.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cpp_mujoco.physics.batched_action import FAILURES, MacroActions
-from cpp_mujoco.physics.battery import _A, _B, _C, OVERLOAD
-from cpp_mujoco.physics.controller import GRAVITY
+from cpp_mujoco.physics.control.controller import GRAVITY
+from cpp_mujoco.physics.power.battery import _A, _B, _C, OVERLOAD
 
 if TYPE_CHECKING:
     from cpp_mujoco.physics.batched_flight import BatchedFlight
@@ -58,7 +58,8 @@ class CompiledTick:
     is: ``tick(i, action)`` returns the drones that step next."""
 
     def __init__(self, flight: BatchedFlight):
-        from cpp_mujoco.physics import compiled_control, compiled_power
+        from cpp_mujoco.physics.control import kernels as compiled_control
+        from cpp_mujoco.physics.power import kernels as compiled_power
 
         self.k, self.p, self.f, self.failures = compiled_control, compiled_power, flight, FAILURES
         one, c = flight.one, flight.config

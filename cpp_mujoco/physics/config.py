@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
-from cpp_mujoco.physics.turbulence import check_level
+from cpp_mujoco.physics.air.turbulence import check_level
 
 # fields that do not change how a calm-air move flies (so they do not change the energy unit)
 _NOT_CALIBRATED = {
@@ -198,17 +198,17 @@ class PhysicsConfig:
     gust_std: float = 0.0  # m/s, standard deviation of each horizontal gust component
     gust_tau: float = 2.0  # s, correlation time of the Ornstein-Uhlenbeck gusts
     # Dryden turbulence (MIL-F-8785C, low altitude) on top: "none", "light", "moderate",
-    # "severe" (W20 = 15 / 30 / 45 kt); see cpp_mujoco/physics/turbulence.py
+    # "severe" (W20 = 15 / 30 / 45 kt); see cpp_mujoco/physics/air/turbulence.py
     turbulence: str = "none"
     # 0: an episode's gusts come from its own generator (seeded by the episode's seed); k > 0:
     # from a generator seeded by (k, one draw of it) — other gust histories for the very same
     # episodes, e.g. held-out gust seeds to choose agents on without touching the protocol's
     gust_seed: int = 0
-    # --- rotor power (cpp_mujoco/physics/energy.py, docs/power.md): "forward-flight" (Glauert
+    # --- rotor power (cpp_mujoco/physics/power/rotor.py, docs/power.md): "forward-flight" (Glauert
     # induced velocity with the airspeed through each disk, profile and drag power) or
     # "momentum" (hover momentum theory, airspeed-blind); both give the same hover in still air
     power_model: str = POWER_MODELS[0]
-    # --- the LiPo pack (cpp_mujoco/physics/battery.py; sources in assets/README.md). An
+    # --- the LiPo pack (cpp_mujoco/physics/power/battery.py; sources in assets/README.md). An
     # episode's pack holds its budget of drawable energy between full charge and the reserve.
     battery_cells: int = 3  # in series
     battery_cell_resistance: float = 0.005  # Ω per cell, internal (DC) resistance

@@ -2,13 +2,13 @@
 
 Parts: the vehicle is the compiled model; the controller and the wind are swappable
 (:mod:`cpp_mujoco.physics.parts`); the coverage sensor
-(:class:`~cpp_mujoco.physics.camera.CoverageCamera`) and the energy model are the flight's own.
+(:class:`~cpp_mujoco.physics.sensing.camera.CoverageCamera`) and the energy model are the flight's own.
 
 Rates: MuJoCo steps every ``timestep``; the controller, wind, drag, energy and failure checks run
 every ``substeps`` physics steps (``mj_step(..., nstep=k)``); the camera takes a frame at
 ``camera_rate`` plus one at the start and end of every action. Energy is the sum over physics
 steps of the thrust's power, scaled per tick by the forward-flight factor of the tick's airspeed
-(see :class:`~cpp_mujoco.physics.energy.IntervalEnergy`); no-fly violations are
+(see :class:`~cpp_mujoco.physics.power.rotor.IntervalEnergy`); no-fly violations are
 sampled per tick and counted as ``substeps`` physics steps each.
 """
 
@@ -21,16 +21,21 @@ import mujoco
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.air.wind import QuadraticDrag, Wind
 from cpp_mujoco.physics.batched_action import ActionResult
-from cpp_mujoco.physics.battery import CUTOFF, Battery, PackSpec
-from cpp_mujoco.physics.camera import CoverageCamera, Polygon
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.controller import GeometricController, MinJerk
-from cpp_mujoco.physics.energy import ForwardFlightPower, IntervalEnergy, PowerModel, air_in_body
+from cpp_mujoco.physics.control.controller import GeometricController, MinJerk
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.physics.parts import Controller, WindModel
+from cpp_mujoco.physics.power.battery import CUTOFF, Battery, PackSpec
+from cpp_mujoco.physics.power.rotor import (
+    ForwardFlightPower,
+    IntervalEnergy,
+    PowerModel,
+    air_in_body,
+)
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
-from cpp_mujoco.physics.wind import QuadraticDrag, Wind
+from cpp_mujoco.physics.sensing.camera import CoverageCamera, Polygon
 
 Reference = Callable[[float], tuple]
 EMERGENCY_LANDING = "budget exhausted in flight: emergency landing where it was"

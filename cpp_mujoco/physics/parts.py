@@ -2,8 +2,8 @@
 
 A flight is a vehicle (the compiled MJCF) flown by a controller through a wind, after RotorPy's
 vehicle / controller / wind split: ``Flight(model, grid_map, config, controller=…, wind=…)``.
-``None`` builds the defaults (:class:`~cpp_mujoco.physics.controller.GeometricController` with
-``config.controller`` gains, :class:`~cpp_mujoco.physics.wind.Wind` from ``config``'s weather).
+``None`` builds the defaults (:class:`~cpp_mujoco.physics.control.controller.GeometricController` with
+``config.controller`` gains, :class:`~cpp_mujoco.physics.air.wind.Wind` from ``config``'s weather).
 
 Both are called at the control rate from a plain-float loop: take and return plain floats and
 tuples (rotation matrices are row-major 9-sequences, body→world), not numpy arrays — a numpy call
@@ -47,7 +47,7 @@ class Controller(Protocol):
 class WindModel(Protocol):
     """The air's velocity (m/s, world frame) at the vehicle, once per control update, in order.
 
-    The flight turns it into drag on the body (:class:`~cpp_mujoco.physics.wind.QuadraticDrag`).
+    The flight turns it into drag on the body (:class:`~cpp_mujoco.physics.air.wind.QuadraticDrag`).
     """
 
     def reset(self, rng: np.random.Generator) -> None:

@@ -1,7 +1,7 @@
 """The evaluation protocol in physics: many MuJoCo episodes, in this process or over workers.
 
 The episodes are flown in batches (:func:`chunks`: ordered by budget, so a batch's episodes last
-about as long) by the batched ``MuJoCo-v0`` (:mod:`~cpp_mujoco.physics.vector_env`), each
+about as long) by the batched ``MuJoCo-v0`` (:mod:`~cpp_mujoco.physics.envs.vector`), each
 episode seeded by its index exactly as a single env's episode — so the same episode gives the
 same numbers in or out of process, in any batch, on any engine (``tests/test_episode_runner.py``
 compares it with :func:`~cpp_mujoco.episode.run_episode` on a single env). A stateful policy is
@@ -113,7 +113,7 @@ class VectorEnvs:
 
     def get(self, n: int):
         if n not in self._envs:
-            from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
+            from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
 
             self._envs[n] = MuJoCoVectorEnv(
                 num_envs=n, map=self.grid_map, autoreset_mode="Disabled", **self.env_kwargs

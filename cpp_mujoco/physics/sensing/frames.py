@@ -1,5 +1,5 @@
-"""The coverage camera of N drones at once: :class:`~cpp_mujoco.physics.camera.CoverageCamera`'s
-rule, its frames taken by one compiled kernel (:func:`~.compiled_camera.frame`).
+"""The coverage camera of N drones at once:
+:class:`~cpp_mujoco.physics.sensing.camera.CoverageCamera`'s rule, its frames taken by one compiled kernel (:func:`~cpp_mujoco.physics.sensing.kernels.frame`).
 
 A frame tests only a fixed window of rows and columns around the camera (those whose centres the
 nominal footprint can reach), with the scalar camera's tests in its floating-point order, so a
@@ -13,10 +13,10 @@ import math
 import mujoco
 import numpy as np
 
-from cpp_mujoco.physics.camera import corner_rays
-from cpp_mujoco.physics.compiled_camera import frame
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
+from cpp_mujoco.physics.sensing.camera import corner_rays
+from cpp_mujoco.physics.sensing.kernels import frame
 
 
 class BatchedCamera:

@@ -13,14 +13,15 @@ import math
 
 import numpy as np
 
+from cpp_mujoco.physics.air.turbulence import DrydenParams, DrydenTurbulence
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.turbulence import DrydenParams, DrydenTurbulence
 
 
 class Wind:
     """The default wind model, advanced by ``dt`` (the control interval) per call, uniform in
     space: ``config``'s steady wind, plus exact-discretised OU gusts per horizontal axis
-    (``gust_std``), plus Dryden turbulence (``turbulence``, :mod:`~cpp_mujoco.physics.turbulence`).
+    (``gust_std``), plus Dryden turbulence (``turbulence``,
+:mod:`~cpp_mujoco.physics.air.turbulence`).
 
     Turbulence axes: u along the steady wind (east when calm), v across it, w up; fixed per
     episode. At low altitude σ_u = σ_v and L_u = L_v, so the horizontal axes only decide which

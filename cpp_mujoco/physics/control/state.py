@@ -1,5 +1,5 @@
 """The per-drone state of the flight's references and controller: the arrays the compiled tick
-(:mod:`~cpp_mujoco.physics.compiled_control`) reads and writes.
+(:mod:`~cpp_mujoco.physics.control.kernels`) reads and writes.
 
 Arrays are (n, 3) vectors and (n,) flags, one row per drone of a batch.
 """
@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from cpp_mujoco.physics.controller import GeometricController
+from cpp_mujoco.physics.control.controller import GeometricController
 
 
 class References:
-    """Per drone: a rest-to-rest minimum-jerk path (:class:`~.controller.MinJerk`), or the
+    """Per drone: a rest-to-rest minimum-jerk path
+(:class:`~cpp_mujoco.physics.control.controller.MinJerk`), or the
     landing descent (min-jerk to a flare above the touchdown point, then a constant sink); the
     compiled ``sense`` evaluates it each tick."""
 
@@ -34,7 +35,7 @@ class References:
 
 
 class BatchedController:
-    """:class:`~cpp_mujoco.physics.controller.GeometricController`'s state for n drones (its
+    """:class:`~cpp_mujoco.physics.control.controller.GeometricController`'s state for n drones (its
     gains and mixer are the scalar controller's, built from the same parameters)."""
 
     def __init__(self, scalar: GeometricController, n: int):

@@ -1,6 +1,7 @@
 """The native batched physics env: ``gymnasium.make_vec("cpp_mujoco/MuJoCo-v0", num_envs=N)``.
 
-N quadrotors fly their grid actions together (:class:`~.flight_episodes.FlightEpisodes` on
+N quadrotors fly their grid actions together 
+(:class:`~cpp_mujoco.physics.envs.episodes.FlightEpisodes` on
 :class:`~cpp_mujoco.physics.batched_flight.BatchedFlight`): one control tick for all of them
 (compiled with numba), their ``MjData`` stepped in one
 ``mujoco.batch`` call on ``threads`` threads. Everything around the flight is the grid vector
@@ -29,8 +30,8 @@ from cpp_mujoco.grid.mdp import GridConfig, StepOutcome
 from cpp_mujoco.grid.vector_env import GridVectorEnv
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.env import make_configs
-from cpp_mujoco.physics.flight_episodes import FlightEpisodes
+from cpp_mujoco.physics.envs.episodes import FlightEpisodes
+from cpp_mujoco.physics.envs.single import make_configs
 
 
 class MuJoCoVectorEnv(GridVectorEnv):

@@ -1,11 +1,11 @@
 """Energy, the forward-flight power ratio and the battery per drone, compiled (numba), on the
-state of :class:`~cpp_mujoco.physics.batched_power.BatchedEnergy` and
-:class:`~cpp_mujoco.physics.batched_power.BatchedBattery`: :func:`power`, the last kernel of a
+state of :class:`~cpp_mujoco.physics.power.state.BatchedEnergy` and
+:class:`~cpp_mujoco.physics.power.state.BatchedBattery`: :func:`power`, the last kernel of a
 compiled tick (:mod:`~cpp_mujoco.physics.compiled_tick`), after
-:func:`~cpp_mujoco.physics.compiled_control.control` has written the drones' commands.
+:func:`~cpp_mujoco.physics.control.kernels.control` has written the drones' commands.
 
-Each expression in its scalar twin's order (:mod:`~cpp_mujoco.physics.energy`,
-:mod:`~cpp_mujoco.physics.battery`), no fastmath. Every
+Each expression in its scalar twin's order (:mod:`~cpp_mujoco.physics.power.rotor`,
+:mod:`~cpp_mujoco.physics.power.battery`), no fastmath. Every
 constant comes in an argument, none from another module's globals: numba would freeze those
 into its cache, which only notices changes to this file.
 """

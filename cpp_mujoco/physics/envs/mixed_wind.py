@@ -1,6 +1,6 @@
 """Several weathers in one batch: :class:`MixedWindVectorEnv`, for fine-tuning agents in physics.
 
-A :class:`~cpp_mujoco.physics.vector_env.MuJoCoVectorEnv` flies one :class:`PhysicsConfig`, so
+A :class:`~cpp_mujoco.physics.envs.vector.MuJoCoVectorEnv` flies one :class:`PhysicsConfig`, so
 one wind. A wind-robust agent must be fine-tuned on many at once (calm air, and a steady wind
 from each compass direction with turbulence) or it forgets the ones it does not see. This env
 holds one ``MuJoCoVectorEnv`` per weather ("condition"), each with its share of the slots, and
@@ -38,7 +38,7 @@ from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.grid.vector_env import restore_generators
 from cpp_mujoco.maps import GridMap, load_map
-from cpp_mujoco.physics.vector_env import MuJoCoVectorEnv
+from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
 
 # one weather: PhysicsConfig keywords (e.g. wind_speed, wind_direction, turbulence) and slots
 Condition = tuple[Mapping[str, Any], int]

@@ -229,7 +229,7 @@ def statistics_table(
     airspeed: float = 10.0, ticks: int = 2_000_000, dt: float = 0.02, altitude_m: float = 6.0
 ) -> str:
     """Markdown table: generated vs model statistics for each level, each from its own seed
-    (``python -m cpp_mujoco.physics.turbulence``; docs/turbulence.md)."""
+    (``python -m cpp_mujoco.physics.air.turbulence``; docs/turbulence.md)."""
     rows = ["| level | axis | σ model | σ measured | ρ(L/V) model | ρ(L/V) measured | "
             "L model | L fitted |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for seed, level in enumerate(W20_KNOTS):

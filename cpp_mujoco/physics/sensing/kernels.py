@@ -3,7 +3,7 @@
 Why compiled: a frame tests the cells of a small window under the camera (a few dozen) against
 the footprint's four edges; as numpy that is ~40 calls over short arrays per frame, which at one
 or a few drones costs more than the physics between frames. The rule is the scalar camera's
-(:class:`~cpp_mujoco.physics.camera.CoverageCamera`) in the same floating-point order: the
+(:class:`~cpp_mujoco.physics.sensing.camera.CoverageCamera`) in the same floating-point order: the
 corner rays cast to the ground, the frame used only when level and every ray points down, a cell
 seen when its centre lies in the footprint's bounding box, within the nominal footprint's half
 width of the camera and on no edge's outer side. Run uncompiled (``frame.py_func``) it is its own

@@ -1,9 +1,9 @@
 """The per-drone state of energy, battery and wind: the arrays the compiled tick
-(:mod:`~cpp_mujoco.physics.compiled_control`, :mod:`~cpp_mujoco.physics.compiled_power`) reads
+(:mod:`~cpp_mujoco.physics.control.kernels`, :mod:`~cpp_mujoco.physics.power.kernels`) reads
 and writes.
 
-Each class takes its scalar model (:class:`~cpp_mujoco.physics.energy.IntervalEnergy`,
-:class:`~cpp_mujoco.physics.battery.Battery`, :class:`~cpp_mujoco.physics.wind.Wind`) for its
+Each class takes its scalar model (:class:`~cpp_mujoco.physics.power.rotor.IntervalEnergy`,
+:class:`~cpp_mujoco.physics.power.battery.Battery`, :class:`~cpp_mujoco.physics.air.wind.Wind`) for its
 constants. The wind draws each drone's normals from that drone's own generator in the blocks and
 order the scalar wind does, so a drone of the batch sees the very gusts a single env seeded like
 it sees.
@@ -15,9 +15,9 @@ import math
 
 import numpy as np
 
-from cpp_mujoco.physics.battery import _A, _B, _C, Battery
-from cpp_mujoco.physics.energy import IntervalEnergy
-from cpp_mujoco.physics.wind import Wind
+from cpp_mujoco.physics.air.wind import Wind
+from cpp_mujoco.physics.power.battery import _A, _B, _C, Battery
+from cpp_mujoco.physics.power.rotor import IntervalEnergy
 
 
 class BatchedEnergy:

@@ -4,10 +4,10 @@ Why: as numpy, a tick is ≈ 150 calls, each microseconds of dispatch over a sho
 Compiled, the per-drone arithmetic is a loop over plain doubles in two calls: :func:`sense`
 (rotation, failure checks, no-fly count, reference, tracking, camera and done checks) and
 :func:`control` (wind, observer, controller, mixer, drag; then
-:func:`~cpp_mujoco.physics.compiled_power.power`: energy, battery). Every expression keeps the
+:func:`~cpp_mujoco.physics.power.kernels.power`: energy, battery). Every expression keeps the
 order of its scalar model, without fastmath (exp, log, hypot are the C library's). The kernels
-work on the state arrays of :mod:`~cpp_mujoco.physics.batched_control` and
-:mod:`~cpp_mujoco.physics.batched_power`; what needs Python is flagged in ``code`` for
+work on the state arrays of :mod:`~cpp_mujoco.physics.control.state` and
+:mod:`~cpp_mujoco.physics.power.state`; what needs Python is flagged in ``code`` for
 :mod:`~cpp_mujoco.physics.compiled_tick`. Run uncompiled (``sense.py_func``) they are their own
 reference (``tests/test_compiled_tick.py``). Constants come in arguments, none from another
 module's globals: numba freezes those into its cache, which notices only this file's changes.

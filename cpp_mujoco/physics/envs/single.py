@@ -7,7 +7,7 @@ same :class:`SafetyController`), but the move is flown, coverage is what the cam
 saw, and the budget is the LiPo pack's remaining drawable energy in calibrated units (a calm
 move's energy drawn from the pack, I²R loss included; ``info`` adds ``state_of_charge`` and
 ``battery_voltage_v``). The flight is the vector env's, a batch of one
-(:class:`~cpp_mujoco.physics.flight_episodes.FlightEpisodes`); its outcome goes through
+(:class:`~cpp_mujoco.physics.envs.episodes.FlightEpisodes`); its outcome goes through
 :meth:`GridMDP.apply`, the grid's own rules for reward, crash and termination.
 """
 
@@ -26,7 +26,7 @@ from cpp_mujoco.grid.mdp import GridConfig, StepOutcome
 from cpp_mujoco.grid.single_env import SingleGridEnv
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.flight_episodes import BUDGET_EXHAUSTED, FlightEpisodes
+from cpp_mujoco.physics.envs.episodes import BUDGET_EXHAUSTED, FlightEpisodes
 
 __all__ = ["BUDGET_EXHAUSTED", "MuJoCoEnv", "make_configs", "split_kwargs"]
 
