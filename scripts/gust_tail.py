@@ -32,11 +32,11 @@ from cpp_mujoco.grid.wind import (
     wind_costs,
 )
 from cpp_mujoco.io import atomic_path, atomic_write_text
+from cpp_mujoco.physics.action import HOVER, MOVE
 from cpp_mujoco.physics.action_energy import _HEADINGS, _OPEN, _kind
-from cpp_mujoco.physics.batched_action import HOVER, MOVE
-from cpp_mujoco.physics.batched_flight import BatchedFlight
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.flight import Flight
 
 SUMS = (1, 2, 4, 8, 12)
 
@@ -48,7 +48,7 @@ def fly(job: tuple[float, float, int, int]) -> list[tuple[int, float]]:
     config = replace(
         PhysicsConfig(), wind_speed=speed, wind_direction=direction, turbulence="moderate"
     )
-    flight = BatchedFlight.alone(_OPEN, config)
+    flight = Flight.alone(_OPEN, config)
     width, middle = _OPEN.shape[1], 2 * _OPEN.shape[1] + 2
     flight.reset(0, 2, 2, math.inf, np.random.default_rng(seed))
     flight.fly_one(HOVER, middle)  # settle

@@ -12,7 +12,7 @@ from cpp_mujoco.physics.control import kernels as compiled_control
 from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
 from cpp_mujoco.physics.power import kernels as compiled_power
 from cpp_mujoco.physics.power.battery import CUTOFF
-from cpp_mujoco.physics.sensing import frames as batched_camera
+from cpp_mujoco.physics.sensing import camera
 from tests.twin_flights import (
     FAILURE_MOVES,
     MAP,
@@ -28,7 +28,7 @@ KERNELS = [
     (compiled_control, "sense"),
     (compiled_control, "control"),
     (compiled_power, "power"),
-    (batched_camera, "frame"),
+    (camera, "frame"),
     (airborne, "clear_of_ground"),
     (airborne, "changed"),
 ]

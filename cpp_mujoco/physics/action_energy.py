@@ -17,9 +17,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.batched_action import HOVER, LAND, MOVE
-from cpp_mujoco.physics.batched_flight import BatchedFlight
+from cpp_mujoco.physics.action import HOVER, LAND, MOVE
 from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.flight import Flight
 
 _OPEN = GridMap.from_ascii(["TTTTT", "TTTTT", "TTLTT", "TTTTT", "TTTTT"], name="open-5x5")
 # heading (deg, clockwise from north) → the neighbour of the middle cell (row, col)
@@ -44,11 +44,11 @@ def _kind(heading: float, wind_from: float) -> str:
     return "upwind" if offset == 0.0 else "downwind" if offset == 180.0 else "crosswind"
 
 
-def flown_sequence(config: PhysicsConfig, seed: int = 0, flight: BatchedFlight | None = None):
+def flown_sequence(config: PhysicsConfig, seed: int = 0, flight: Flight | None = None):
     """One flight of the sequence in ``config``'s weather (gusts drawn from ``seed``):
     ``[(kind, joules), …]`` in the order flown, the settling hover left out. In calm air every
     heading counts as crosswind (no wind to face)."""
-    flight = flight or BatchedFlight.alone(_OPEN, config)
+    flight = flight or Flight.alone(_OPEN, config)
     calm = config.wind_speed == 0.0
     width = _OPEN.shape[1]
     middle = 2 * width + 2
@@ -71,7 +71,7 @@ def action_energy(config: PhysicsConfig, repeats: int = 1, seed: int = 0) -> Act
     ``config``'s weather."""
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")
-    flight = BatchedFlight.alone(_OPEN, config)
+    flight = Flight.alone(_OPEN, config)
     energies: dict[str, list[float]] = {k: [] for k in KINDS}
     for r in range(repeats):
         for kind, joules in flown_sequence(config, seed + r, flight):

@@ -27,9 +27,9 @@ import numpy as np
 
 from cpp_mujoco.io import WriteError, atomic_write_text
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.batched_action import HOVER, MOVE
-from cpp_mujoco.physics.batched_flight import BatchedFlight
+from cpp_mujoco.physics.action import HOVER, MOVE
 from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.flight import Flight
 from cpp_mujoco.physics.power.rotor import PowerModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
 
@@ -54,7 +54,7 @@ def calibrate(config: PhysicsConfig) -> dict:
     # the cut-off is a limit of the pack, not part of a move's cost: it is off while measuring
     calm = replace(config, wind_speed=0.0, gust_std=0.0, turbulence="none", battery_cutoff_v=0.0)
     grid = GridMap.from_ascii(["GGG", "GGG", "GGG"], name="calibration")
-    flight = BatchedFlight.alone(grid, calm)
+    flight = Flight.alone(grid, calm)
     flight.reset(0, 1, 1, math.inf, np.random.default_rng(0))
     hover = flight.fly_one(HOVER, 4)
     moves = [flight.fly_one(MOVE, r * 3 + c) for r, c in _MOVES]
@@ -140,8 +140,8 @@ def unit_energy(config: PhysicsConfig) -> float:
 
 # the modules and folders whose code flies a calibration move
 FLIGHT_SOURCES = (
-    "flight.py", "batched_flight.py", "compiled_tick.py", "batched_action.py", "airborne.py",
-    "arena.py", "quadrotor.py", "geometry.py", "config.py",
+    "flight.py", "tick.py", "action.py", "airborne.py", "arena.py", "quadrotor.py",
+    "geometry.py", "config.py",
 )  # fmt: skip
 FLIGHT_PARTS = ("control", "air", "power", "sensing")
 

@@ -133,7 +133,7 @@ class ControllerGains:
     # 3.9σ gust of moderate turbulence (σ_u = 3.0 m/s at 6 m). At 45° (and a 12 N observer) the
     # 18 m/s gust peaks of that weather blew the UAV 5 m off its track.
     tilt_limit_deg: float = 55.0
-    feedforward_lead: float = 0.1  # s, reference acceleration taken this far ahead (MinJerk)
+    feedforward_lead: float = 0.1  # s, reference acceleration taken this far ahead (References)
 
     def __post_init__(self) -> None:
         _check_numbers(self, _GAIN_RANGES, prefix="controller.")

@@ -1,15 +1,32 @@
-"""The flight loop: one grid action flown as a macro-step of controller ticks and MuJoCo steps.
+"""The flight: N quadrotors flying grid actions as macro-actions of control ticks and MuJoCo
+steps — the one flight of the physics backend (``MuJoCo-v0`` is a batch of one of it).
 
-Parts: the vehicle is the compiled model; the controller and the wind are swappable
-(:mod:`cpp_mujoco.physics.parts`); the coverage sensor
-(:class:`~cpp_mujoco.physics.sensing.camera.CoverageCamera`) and the energy model are the flight's own.
+Parts: the vehicle is the compiled model (:mod:`~cpp_mujoco.physics.arena`); the controller
+(:mod:`~cpp_mujoco.physics.control`) and the wind (:mod:`~cpp_mujoco.physics.air`) are
+swappable (:mod:`~cpp_mujoco.physics.parts`); the rotor power and the pack
+(:mod:`~cpp_mujoco.physics.power`) and the coverage camera (:mod:`~cpp_mujoco.physics.sensing`)
+are the flight's own.
 
 Rates: MuJoCo steps every ``timestep``; the controller, wind, drag, energy and failure checks run
-every ``substeps`` physics steps (``mj_step(..., nstep=k)``); the camera takes a frame at
-``camera_rate`` plus one at the start and end of every action. Energy is the sum over physics
-steps of the thrust's power, scaled per tick by the forward-flight factor of the tick's airspeed
-(see :class:`~cpp_mujoco.physics.power.rotor.IntervalEnergy`); no-fly violations are
+every ``substeps`` physics steps; the camera takes a frame at ``camera_rate`` plus one at the
+start and end of every action. Energy is the sum over physics steps of the thrust's power,
+scaled per tick by the forward-flight factor of the tick's airspeed; no-fly violations are
 sampled per tick and counted as ``substeps`` physics steps each.
+
+How: a tick's work is done once for all drones, in three compiled kernels
+(:mod:`~cpp_mujoco.physics.tick`), and the physics of all drones is one call of
+``mujoco.batch.Batch.step`` (MuJoCo ≥ 3.17): C loops over the drones on ``threads`` threads
+without the GIL. The batch is *persistent*: each drone keeps its own ``MjData`` inside it, and its
+state row (:attr:`Flight.state`, ``mjSTATE_INTEGRATION``) carries the solver's warmstart and the
+inputs — every step is an ``mj_step``: contacts (touchdown) and the camera pose (coverage) are
+MuJoCo's own. Drones clear of the ground step on a model without contacts
+(:mod:`~cpp_mujoco.physics.airborne`), the same doubles.
+
+A macro-action ends at a different time for each drone; the drones that are done wait (no
+physics) while the others fly, so a drone's flight does not depend on the batch it flies in.
+What stays per drone in plain Python is what happens once per action or near the ground: the
+failure messages, the touchdown checks while landing (a drone's ``MjData`` is copied out of the
+batch only at a tick with contacts) and the motors-off settle.
 """
 
 from __future__ import annotations
@@ -19,37 +36,29 @@ from collections.abc import Callable
 
 import mujoco
 import numpy as np
+from mujoco.batch import Batch
 
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.air.wind import QuadraticDrag, Wind
-from cpp_mujoco.physics.batched_action import ActionResult
+from cpp_mujoco.physics.action import HOVER, LAND, MOVE, ActionResult, MacroActions
+from cpp_mujoco.physics.air.wind import Wind
+from cpp_mujoco.physics.airborne import AirborneSteps
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.control.controller import GeometricController, MinJerk
+from cpp_mujoco.physics.control.controller import GeometricController, References
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.physics.parts import Controller, WindModel
 from cpp_mujoco.physics.power.battery import CUTOFF, Battery, PackSpec
-from cpp_mujoco.physics.power.rotor import (
-    ForwardFlightPower,
-    IntervalEnergy,
-    PowerModel,
-    air_in_body,
-)
+from cpp_mujoco.physics.power.rotor import ForwardFlightPower, IntervalEnergy, PowerModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
 from cpp_mujoco.physics.sensing.camera import CoverageCamera, Polygon
+from cpp_mujoco.physics.tick import Tick
 
-Reference = Callable[[float], tuple]
 EMERGENCY_LANDING = "budget exhausted in flight: emergency landing where it was"
+_ROW = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # the batch's state rows
 
 
-def quat_to_mat(w: float, x: float, y: float, z: float) -> tuple[float, ...]:
-    """Row-major body→world rotation of a unit quaternion (MuJoCo's w, x, y, z order)."""
-    xx, yy, zz = x * x, y * y, z * z
-    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
-    return (
-        1 - 2 * (yy + zz), 2 * (xy - wz), 2 * (xz + wy),
-        2 * (xy + wz), 1 - 2 * (xx + zz), 2 * (yz - wx),
-        2 * (xz - wy), 2 * (yz + wx), 1 - 2 * (xx + yy),
-    )  # fmt: skip
+def _column(model: mujoco.MjModel, component: mujoco.mjtState) -> int:
+    """First column of a state component in a row: components are stored in bit order."""
+    return mujoco.mj_stateSize(model, (int(component) - 1) & _ROW)
 
 
 def ground_contact(data, gear: frozenset, quad: frozenset, ground: int) -> bool | None:
@@ -66,298 +75,302 @@ def ground_contact(data, gear: frozenset, quad: frozenset, ground: int) -> bool 
 
 
 class Flight:
-    """A quadrotor flying over a grid map in a compiled arena model.
-
-    ``coverage``: the (1, H·W) bool row the camera marks (the env passes its MDP's); ``controller``
-    and ``wind``: the parts (:mod:`~cpp_mujoco.physics.parts`), None for the defaults —
-    ``GeometricController(params, config.controller)`` and ``Wind(config, config.control_dt)``.
-    """
+    """``n`` drones over one map and model. ``coverage``: the (n, H·W) bool rows the cameras
+    mark (the env passes its MDP's); ``threads``: how many threads step the physics (the
+    caller's included); ``air_steps``: drones clear of the ground step without contacts (the
+    same doubles, cheaper); ``controller`` and ``wind``: a user's parts
+    (:mod:`~cpp_mujoco.physics.parts`), None for the built-in ones (:attr:`law`: the geometric
+    controller with ``config.controller`` gains, :attr:`weather`: ``config``'s wind). The batch
+    steps a copy of ``model``, made here."""
 
     def __init__(
         self,
         model: mujoco.MjModel,
         grid_map: GridMap,
         config: PhysicsConfig,
-        coverage: np.ndarray | None = None,
+        n: int,
+        coverage: np.ndarray,
+        threads: int = 1,
+        air_steps: bool = True,
         controller: Controller | None = None,
         wind: WindModel | None = None,
     ):
-        self.model, self.config, self.map = model, config, grid_map
-        self.data = mujoco.MjData(model)
+        self.model, self.config, self.n = model, config, n
+        self.k, self.dt = config.substeps, config.control_dt
         self.params = p = QuadrotorParams.from_model(model)
         self.geo = GridGeometry.of(grid_map, config.cell_size)
-        self.k = config.substeps
-        self.dt = config.control_dt
-        self.controller = (
-            controller if controller is not None else GeometricController(p, config.controller)
-        )
-        self.wind = wind if wind is not None else Wind(config, self.dt)
-        self.drag = QuadraticDrag(config.air_density, p.drag_area)
-        self.power = PowerModel(p, config.air_density)
-        self.battery = Battery(PackSpec.from_config(config))  # the load's energy comes from it
+        self.law = GeometricController(p, config.controller, n)
+        self.weather = Wind(config, self.dt, n)
+        self.controller = controller if controller is not None else self.law
+        self.wind = wind if wind is not None else self.weather
+        self.half_rho_cda = 0.5 * config.air_density * p.drag_area  # the airframe's drag
         forward = (  # rotor power with the airspeed through the disks, or hover momentum theory
             ForwardFlightPower(p, config.air_density)
             if config.power_model == "forward-flight"
             else None
         )
-        self.interval_energy = IntervalEnergy(
-            self.power, config.timestep, p.motor_tau, self.k, forward
-        )
+        power = PowerModel(p, config.air_density)
+        self.energy_of = IntervalEnergy(power, config.timestep, p.motor_tau, self.k, forward)
+        self.battery = Battery(PackSpec.from_config(config), n)
+        self.wind_now = np.zeros((n, 3))  # m/s, the wind each drone's last tick flew in
+        # called with a drone's index after each of its camera frames (videos, recordings)
+        self.on_frame: Callable[[int], None] | None = None
+        self.trace: list | None = None  # drone 0's (t, x, y, z) at every tick, when a list
+        self.threads = max(1, int(threads))
+        # one persistent MjData per drone, stepped in C (the batch copies the model once)
+        self.sims = sims = Batch(model, n, nthread=self.threads, persistent=True)
+        # (n, nstate) live rows: time, qpos, qvel, act, warmstart, ctrl, …, xfrc_applied
+        self.state = sims.state
+        self._ncon = sims.bind("ncon")  # each drone's contacts of its last step
+        # MuJoCo's count of its divergence resets (a bad acceleration), per drone, against
+        # the count at the episode's start
+        self._bad = sims.warning[:, mujoco.mjtWarning.mjWARN_BADQACC, 1]
+        self._bad0 = np.zeros(n, dtype=self._bad.dtype)
+        self._contacts = mujoco.MjData(model)  # a drone's MjData copied out, to read them
+        self.camera = CoverageCamera(
+            model, sims.bind("cam_xpos"), sims.bind("cam_xmat"), self.state[:, 0], self.geo,
+            config, grid_map.target, coverage,
+        )  # fmt: skip
+        self.coverage = coverage
+        self.refs = References(n, self.controller.lead, config.land_duration, config.land_speed)
+        self._geometry(model, grid_map)
+        self.capacity = np.full(n, math.inf)
+        self.energy_used = np.zeros(n)
+        self.motors_on = np.ones(n, dtype=bool)
+        self.nfz_violations = np.zeros(n, dtype=np.int64)
+        self.max_track_error = np.zeros(n)
+        self.no_fly = np.asarray(grid_map.nfz, dtype=bool).reshape(-1)
+        self.air = AirborneSteps(sims, model, self._frame, *self._live) if air_steps else None
+        self._tick = Tick(self)
 
-        frame_body = int(model.body_parentid[p.body_id])
-        jnt = int(model.body_jntadr[frame_body])
+    def _geometry(self, model: mujoco.MjModel, grid_map: GridMap) -> None:
+        """Where the drone's state sits in a row, and the heights, geoms and bounds the flight
+        checks against."""
+        config, S = self.config, mujoco.mjtState
+        frame = int(model.body_parentid[self.params.body_id])  # the body of the free joint
+        jnt = int(model.body_jntadr[frame])
         if model.jnt_type[jnt] != mujoco.mjtJoint.mjJNT_FREE:
             raise ValueError("the quadrotor must hang on a free joint")
-        qa, va = int(model.jnt_qposadr[jnt]), int(model.jnt_dofadr[jnt])
-        d = self.data
-        self._qpos, self._qvel = d.qpos[qa : qa + 7], d.qvel[va : va + 6]
-        self._ctrl, self._act = d.ctrl, d.act
-        self._xfrc = d.xfrc_applied[p.body_id]
-        target = grid_map.target.reshape(-1)
-        self.coverage = coverage if coverage is not None else np.zeros((1, target.size), bool)
-        self.camera = CoverageCamera(model, d, self.geo, config, target, self.coverage)
+        q0 = _column(model, S.mjSTATE_QPOS) + int(model.jnt_qposadr[jnt])
+        v0 = _column(model, S.mjSTATE_QVEL) + int(model.jnt_dofadr[jnt])
+        a0 = _column(model, S.mjSTATE_ACT)
+        self.cols = (slice(q0, q0 + 7), slice(v0, v0 + 6), slice(a0, a0 + model.na))
+        u0 = _column(model, S.mjSTATE_CTRL)
+        self.ctrl_cols = slice(u0, u0 + model.nu)
+        f0 = _column(model, S.mjSTATE_XFRC_APPLIED) + 6 * self.params.body_id
+        self.force_cols = slice(f0, f0 + 3)  # the drag force on the body
+        self._frame, self._live = frame, (self.state[:, q0 : q0 + 3], self.state[:, v0 : v0 + 6])
         self.cruise_z = config.altitude - float(model.cam_pos[self.camera.cam_id][2])
         self.ground_id = int(model.geom("ground").id)
-        quad_geoms = np.flatnonzero(model.body_rootid[model.geom_bodyid] == frame_body)
+        quad_geoms = np.flatnonzero(model.body_rootid[model.geom_bodyid] == frame)
         gear = [model.geom(f"quadrotor/skid_{s}").id for s in "lr"]
         self.gear_geoms = frozenset(int(g) for g in gear)
         self.quad_geoms = frozenset(int(g) for g in quad_geoms)
         self.touch_z = -min(
             float(model.geom_pos[g][2]) - float(model.geom_size[g][0]) for g in self.gear_geoms
         )
-        self.no_fly = grid_map.nfz.reshape(-1).tolist()
         self.cos_flip = math.cos(math.radians(config.max_tilt_deg))
         hx, hy = self.geo.half_extent
         self.bounds = (hx + config.cell_size, hy + config.cell_size, 3 * config.altitude + 5)
-        self._warn_badqacc = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
-        self.capacity = math.inf
-        self.trace: list[tuple[float, float, float, float]] | None = None  # (t, x, y, z) per tick
-        # called with the flight after every camera frame: recorders and video cameras hook here
-        self.on_frame: Callable[[Flight], None] | None = None
-        self.reset(0, 0)
+
+    @classmethod
+    def alone(cls, grid_map: GridMap, config: PhysicsConfig) -> Flight:
+        """One drone over ``grid_map`` in an arena of its own (calibration, energy tables)."""
+        from cpp_mujoco.physics.arena import build_arena, compile_arena
+
+        model = compile_arena(build_arena(grid_map, config))
+        return cls(model, grid_map, config, 1, np.zeros((1, grid_map.target.size), dtype=bool))
+
+    def close(self) -> None:
+        """Nothing to release: the batch's threads idle without CPU and go with the object."""
 
     # ------------------------------------------------------------------ episode state
-    def reset(self, row: int, col: int, capacity: float = math.inf, rng=None) -> None:
-        """Hover level at cruise altitude over (row, col) with rotors at hover thrust."""
-        m, d = self.model, self.data
-        mujoco.mj_resetData(m, d)
+    def reset(self, i: int, row: int, col: int, capacity: float, rng: np.random.Generator):
+        """Drone ``i`` hovers level at cruise altitude over (row, col), rotors at hover thrust
+        (``mj_resetData``, the pose and thrusts written, ``mj_forward``); its pack holds
+        ``capacity`` J, its wind draws from ``rng`` (through ``config.gust_rng``)."""
+        st = self.state
+        self.sims.reset([i], stage=mujoco.mjtStage.mjSTAGE_NONE)
         x, y = self.geo.cell_center(row, col)
-        self._qpos[:3] = (x, y, self.cruise_z)
-        self._qpos[3:] = (1, 0, 0, 0)
+        q = self.cols[0].start
+        st[i, q : q + 7] = (x, y, self.cruise_z, 1, 0, 0, 0)
         hover = self.controller.hover_thrust()
-        d.ctrl[:] = hover
-        d.act[:] = hover
-        mujoco.mj_forward(m, d)
-        self.controller.reset()
-        self.wind.reset(self.config.gust_rng(rng if rng is not None else np.random.default_rng(0)))
-        self.capacity = capacity
-        self.battery.reset(capacity)
-        self.energy_used = 0.0
-        self.motors_on = True
-        self.nfz_violations = 0
-        # m, the largest horizontal distance from the controller's reference this episode: the
-        # margin a no-fly cell's border (half a cell from every reference) must keep
-        self.max_track_error = 0.0
-        self.camera.reset()
-        self.coverage[:] = False
-        self._bad0 = self._warn_badqacc.number
+        st[i, self.ctrl_cols] = hover
+        st[i, self.cols[2]] = hover
+        self.sims.forward([i])
+        self.controller.reset(i)
+        self.wind.reset(i, self.config.gust_rng(rng))
+        self.capacity[i] = capacity
+        self.battery.reset(i, capacity)
+        self.energy_used[i] = 0.0
+        self.motors_on[i] = True
+        self.nfz_violations[i] = 0
+        self.max_track_error[i] = 0.0
+        self.camera.reset(i)
+        self.wind_now[i] = np.nan  # no tick flown yet
+        self.coverage[i] = False
+        self._bad0[i] = self._bad[i]
 
-    @property
-    def time(self) -> float:
-        return float(self.data.time)
+    def set_wind_direction(self, i: int, direction: float) -> None:
+        """Drone ``i``'s steady wind blows from ``direction`` (degrees, as ``wind_direction``)
+        from its next episode on: the scalar wind of that configuration, so its flight is a
+        single env's with ``wind_direction=direction``."""
+        self.weather.set_direction(i, direction)
 
-    @property
-    def position(self) -> np.ndarray:
-        return self._qpos[:3].copy()
-
-    @property
-    def last_footprint(self) -> Polygon | None:
-        """Ground corners of the latest camera frame (None: the horizon was in view)."""
-        return self.camera.last_footprint
+    def position(self, i: int) -> np.ndarray:
+        return self.state[i, self.cols[0]][:3].copy()
 
     def waypoint(self, cell: int) -> tuple[float, float, float]:
+        """The point a move to ``cell`` flies to: its centre at cruise altitude."""
         row, col = divmod(int(cell), self.geo.width)
         return (*self.geo.cell_center(row, col), self.cruise_z)
 
-    # ------------------------------------------------------------------ macro-steps
-    def move(self, cell: int) -> ActionResult:
-        """Fly to the centre of ``cell``; done on arrival or at the time limit."""
-        c = self.config
-        goal = self.waypoint(cell)
-        ref = MinJerk(self.position, goal, c.move_duration, self.controller.lead)
-        return self._fly(ref, goal, c.move_duration, c.move_time_limit, arrive=True)
+    def copy_data(self, i: int, data: mujoco.MjData) -> mujoco.MjData:
+        """Drone ``i``'s whole ``MjData`` copied into ``data`` (to render or inspect it)."""
+        return self.sims.get_data(i, data)
 
-    def hover(self, cell: int) -> ActionResult:
-        """Hold over the centre of ``cell`` for one nominal move duration (a rejected action)."""
-        c = self.config
-        goal = self.waypoint(cell)
-        ref = MinJerk(self.position, goal, c.move_duration, self.controller.lead)
-        return self._fly(ref, goal, c.move_duration, c.move_duration, arrive=False)
+    def footprint(self, i: int) -> Polygon | None:
+        """Ground corners of drone ``i``'s camera image now (None: the horizon is in view)."""
+        return self.camera.footprint(i)
 
-    def land(self, cell: int) -> ActionResult:
-        """Descend over ``cell`` and touch down; touchdown is a landing-gear/ground contact."""
-        c = self.config
-        x, y, _ = self.waypoint(cell)
-        ref = self._descent(self.position, x, y)
-        return self._fly(ref, (x, y, self.touch_z), c.land_duration, c.land_time_limit, land=True)
-
-    def _descent(self, start, x: float, y: float) -> Reference:
-        """Minimum-jerk descent from ``start`` to a flare just above the ground at (x, y), then
-        a constant sink until the landing gear touches."""
-        c = self.config
-        flare = self.touch_z + 0.3
-        descent = MinJerk(start, (x, y, flare), c.land_duration, self.controller.lead)
-        speed = c.land_speed
-
-        def ref(t: float):
-            if t < c.land_duration:
-                return descent(t)
-            return (x, y, flare - speed * (t - c.land_duration)), (0.0, 0.0, -speed), (0, 0, 0)
-
-        return ref
-
-    def _emergency_descent(self, pos) -> Reference:
-        """The battery failsafe of a real autopilot (PX4 ``COM_LOW_BAT_ACT`` "Land", ArduPilot
-        ``BATT_FS_CRT_ACT`` "Land"): land straight down where the UAV is, on the pack's reserve,
-        rather than cutting the motors and falling across whatever airspace lies downwind."""
-        return self._descent(pos, pos[0], pos[1])
-
-    # ------------------------------------------------------------------ the loop
-    def _fly(self, ref: Reference, goal, nominal, limit, arrive=False, land=False) -> ActionResult:
-        out = ActionResult()
-        e0, t0 = self.energy_used, self.time
-        out.newly_seen += self.frame()
-        m, d, k, dt = self.model, self.data, self.k, self.dt
-        qpos, qvel, ctrl, act, xfrc = self._qpos, self._qvel, self._ctrl, self._act, self._xfrc
-        controller, energy_of, battery = self.controller, self.interval_energy, self.battery
-        airspeed_power = getattr(energy_of, "forward", None) is not None
-        wind, drag = self.wind.velocity, self.drag.force
-        cell_index, no_fly, camera = self.geo.cell_index, self.no_fly, self.camera
-        bx, by, bz = self.bounds
-        pos_tol2, vel_tol2 = self.config.arrive_pos_tol**2, self.config.arrive_vel_tol**2
-        max_err2 = self.config.max_tracking_error**2
-        zero = [0.0, 0.0, 0.0, 0.0]
-        trace, warn, bad0, cos_flip = self.trace, self._warn_badqacc, self._bad0, self.cos_flip
-        step, t = mujoco.mj_step, 0.0
-        worst2 = self.max_track_error**2
-        emergency: str | None = None  # why the battery failsafe is landing the UAV
-        # a landing begun with budget left finishes on the reserve: the failsafe would land
-        # right there anyway, and on the grid a landing with one unit left always succeeds
-        landing = land
-        while True:
-            qp = qpos.tolist()
-            qv = qvel.tolist()
-            pos, vel = qp[:3], qv[:3]
-            if trace is not None:
-                trace.append((d.time, *pos))
-            R = quat_to_mat(*qp[3:])
-            # ---- failure checks on the current state
-            failure = None
-            if not math.isfinite(sum(qp)) or warn.number != bad0:
-                failure = "numerical divergence (NaN or unstable acceleration)"
-            elif abs(pos[0]) > bx or abs(pos[1]) > by or pos[2] > bz:
-                failure = "left the arena"
-            elif R[8] < cos_flip and self.motors_on:
-                failure = "flipped over"
-            # no-fly airspace: the body's xy inside a no-fly cell (outside the grid counts)
-            cell = cell_index(pos[0], pos[1])
-            if cell is None or no_fly[cell]:
-                self.nfz_violations += k
-            p_ref, v_ref, a_ref = ref(t)
-            if failure is None and self.motors_on:
-                ex, ey, ez = pos[0] - p_ref[0], pos[1] - p_ref[1], pos[2] - p_ref[2]
-                off2 = ex * ex + ey * ey
-                if off2 > worst2:
-                    worst2 = off2
-                if off2 + ez * ez > max_err2:
-                    failure = "diverged from the reference"
-            if failure is not None:
-                out.failure = failure
-                break
-            if t0 + t >= camera.next_frame:
-                out.newly_seen += self.frame()
-            # ---- done?
-            if not self.motors_on:
-                if self._ground_contact() is not None or t >= self.config.fall_time_limit:
-                    out.failure = battery.failure
-                    break
-            elif land:
-                touch = self._ground_contact()
-                if touch is not None:
-                    if not touch:
-                        out.failure = "hit the ground with the airframe, not the landing gear"
-                    elif emergency is not None:
-                        out.failure = emergency
-                        self._settle()
-                    else:
-                        out.landed = out.arrived = True
-                        self._settle()
-                    break
-                if t >= limit:
-                    out.failure = "no touchdown within the landing time limit"
-                    break
-            elif t >= nominal:
-                gx, gy, gz = pos[0] - goal[0], pos[1] - goal[1], pos[2] - goal[2]
-                near = gx * gx + gy * gy + gz * gz < pos_tol2
-                slow = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2] < vel_tol2
-                if arrive and near and slow:
-                    out.arrived = True
-                    break
-                if t >= limit - 1e-9:
-                    break
-            # ---- control, energy, wind, physics
-            w = wind(d.time, pos)  # once per tick: stateful wind models advance on each call
-            if self.motors_on:
-                thrusts = act.tolist()
-                controller.observe(vel, R, thrusts, dt)
-                f = controller(pos, vel, R, qv[3:], p_ref, v_ref, a_ref, dt)
-                e = energy_of(thrusts, f, air_in_body(vel, w, R) if airspeed_power else None)
-                e = battery.draw(e / dt, dt)  # J from the pack: the load plus its I²R loss
-                if e is None:  # the pack cannot carry the load: the motors stop
-                    self.motors_on = False
-                    battery.idle()
-                    f, t = zero, 0.0  # the fall gets its own time limit
-                else:
-                    self.energy_used += e
-                    if (
-                        not landing
-                        and emergency is None
-                        and (battery.below_cutoff or self.energy_used >= self.capacity)
-                    ):  # the battery failsafe: land where it is, on the reserve
-                        emergency = CUTOFF if battery.below_cutoff else EMERGENCY_LANDING
-                        land, t, limit = True, 0.0, self.config.land_time_limit
-                        ref = self._emergency_descent(pos)
-                        goal = (pos[0], pos[1], self.touch_z)
-            else:
-                f = zero
-            ctrl[:] = f
-            xfrc[:3] = drag(vel, w)
-            step(m, d, k)
-            t += dt
-        self.max_track_error = math.sqrt(worst2)
-        out.newly_seen += self.frame()
-        out.duration = self.time - t0
-        out.energy = self.energy_used - e0
-        p = self._qpos[:3]
-        out.tracking_error = float(math.dist(p.tolist(), goal))
-        return out
-
-    def _ground_contact(self) -> bool | None:
-        return ground_contact(self.data, self.gear_geoms, self.quad_geoms, self.ground_id)
-
-    def _settle(self, seconds: float = 0.3) -> None:
-        """Motors off after touchdown; let the airframe come to rest on its skids."""
-        self._ctrl[:] = 0.0
-        self.motors_on = False
-        self.battery.idle()
-        self._xfrc[:3] = 0.0
-        mujoco.mj_step(self.model, self.data, nstep=max(1, round(seconds / self.config.timestep)))
-
-    # ------------------------------------------------------------------ camera
-    def frame(self) -> int:
-        """Take a coverage frame now (:meth:`CoverageCamera.capture`), then call :attr:`on_frame`;
-        return how many target cells it saw first."""
-        newly = self.camera.capture(float(self.data.time))
+    def capture(self, drones: np.ndarray) -> np.ndarray:
+        """A camera frame of each of ``drones`` now (:meth:`CoverageCamera.capture`), then
+        :attr:`on_frame` for each; how many target cells each saw first."""
+        newly = self.camera.capture(drones)
         if self.on_frame is not None:
-            self.on_frame(self)
+            for d in np.asarray(drones).tolist():
+                self.on_frame(int(d))
         return newly
+
+    # ------------------------------------------------------------------ physics
+    def _step(self, drones: np.ndarray, nstep: int) -> None:
+        """``nstep`` physics steps of ``drones`` (sorted) with the ctrl and body force in
+        their rows: one ``Batch.step``, split over the threads in C. A diverging drone (a NaN
+        or huge acceleration) is reset by MuJoCo, which counts it in the drone's warnings: the
+        next tick's failure check reads that count, as the single flight does."""
+        if self.air is not None:
+            self.air.before_step(drones, nstep)
+        self.sims.step(None if drones.size == self.n else drones, nstep)  # None: all, no checks
+
+    def _ground_contact(self, i: int) -> bool | None:
+        """:func:`ground_contact` of drone ``i``'s last step; its ``MjData`` is copied out of the
+        batch only when it had contacts (touchdown: a few ticks per landing)."""
+        if self._ncon[i] == 0:
+            return None
+        data = self.sims.get_data(i, self._contacts)
+        return ground_contact(data, self.gear_geoms, self.quad_geoms, self.ground_id)
+
+    def _settle(self, i: int, seconds: float = 0.3) -> None:
+        """Motors off after touchdown: the airframe comes to rest on its skids."""
+        self.motors_on[i] = False
+        self.battery.current[i] = 0.0
+        self.state[i, self.ctrl_cols] = 0.0
+        self.state[i, self.force_cols] = 0.0
+        self._step(np.array([i]), max(1, round(seconds / self.config.timestep)))
+
+    # ------------------------------------------------------------------ macro-steps
+    def fly(self, kinds: np.ndarray, cells: np.ndarray, active: np.ndarray) -> dict:
+        """Fly one macro-action per ``active`` drone (``kinds``: MOVE to / HOVER over / LAND on
+        ``cells``); the result fields of :class:`~cpp_mujoco.physics.action.ActionResult` as
+        (n,) arrays (zero for drones not active)."""
+        n, c = self.n, self.config
+        res = {
+            "duration": np.zeros(n), "energy": np.zeros(n),
+            "newly_seen": np.zeros(n, dtype=np.int64), "arrived": np.zeros(n, dtype=bool),
+            "landed": np.zeros(n, dtype=bool), "tracking_error": np.zeros(n),
+            "failure": np.full(n, None, dtype=object),
+        }  # fmt: skip
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            return res
+        e0, t0 = self.energy_used.copy(), self.state[:, 0].copy()
+        res["newly_seen"][idx] += self.capture(idx)
+        kind = kinds[idx]
+        rows, cols = np.divmod(cells[idx], self.geo.width)
+        x, y = self.geo.cell_center(rows, cols)
+        landing = kind == LAND
+        z = np.where(landing, self.touch_z + 0.3, self.cruise_z)
+        pos = self.state[idx, self.cols[0]][:, :3]
+        self.refs.set(
+            idx, pos, np.stack([x, y, z], 1), np.where(landing, c.land_duration, c.move_duration),
+            landing,
+        )  # fmt: skip
+        goal = np.zeros((n, 3))
+        goal[idx] = np.stack([x, y, np.where(landing, self.touch_z, self.cruise_z)], 1)
+        nominal = np.zeros(n)
+        nominal[idx] = np.where(landing, c.land_duration, c.move_duration)
+        limit = np.zeros(n)
+        limit[idx] = np.select(
+            [kind == MOVE, kind == HOVER], [c.move_time_limit, c.move_duration], c.land_time_limit
+        )
+        arrive = np.zeros(n, dtype=bool)
+        arrive[idx] = kind == MOVE
+        land = np.zeros(n, dtype=bool)
+        land[idx] = landing
+        action = MacroActions(
+            res, active.copy(), np.zeros(n), t0, goal, nominal, limit, arrive, land,
+            land.copy(), np.full(n, None, dtype=object), self.max_track_error**2,
+        )  # fmt: skip
+        self._loop(action)
+        self.max_track_error[idx] = np.sqrt(action.worst2[idx])
+        res["newly_seen"][idx] += self.capture(idx)
+        res["duration"][idx] = self.state[idx, 0] - t0[idx]
+        res["energy"][idx] = self.energy_used[idx] - e0[idx]
+        p = self.state[idx, self.cols[0]][:, :3]
+        res["tracking_error"][idx] = np.sqrt(((p - goal[idx]) ** 2).sum(1))
+        return res
+
+    def fly_one(self, kind: int, cell: int, i: int = 0) -> ActionResult:
+        """One macro-action of drone ``i`` alone (the others wait): MOVE to, HOVER over or
+        LAND on ``cell``."""
+        active = np.zeros(self.n, dtype=bool)
+        active[i] = True
+        res = self.fly(np.full(self.n, kind), np.full(self.n, cell), active)
+        return ActionResult(**{k: v[i].item() if k != "failure" else v[i] for k, v in res.items()})
+
+    def _loop(self, a: MacroActions) -> None:
+        """The tick loop over the drones still flying: one control tick
+        for all of them (:meth:`_tick`), then their physics steps (one C call)."""
+        k, dt, tick, q = self.k, self.dt, self._tick, self.cols[0].start
+        i = np.flatnonzero(a.flying)
+        while i.size:
+            if self.trace is not None and a.flying[0]:
+                self.trace.append(tuple(self.state[0, [0, q, q + 1, q + 2]].tolist()))
+            go = tick(i, a)
+            if go.size:
+                self._step(go, k)
+                a.t[go] += dt
+            i = np.flatnonzero(a.flying)
+
+    def _landing_done(self, d: int, a: MacroActions) -> bool:
+        """Whether landing or falling drone ``d``'s action ends (contact, time limit)."""
+        res, t = a.res, a.t[d]
+        touch = self._ground_contact(d)
+        if not self.motors_on[d]:
+            if touch is None and t < self.config.fall_time_limit:
+                return False
+            res["failure"][d] = self.battery.failure[d]
+        elif touch is not None:
+            if not touch:
+                res["failure"][d] = "hit the ground with the airframe, not the landing gear"
+            elif a.emergency[d] is not None:
+                res["failure"][d] = a.emergency[d]
+                self._settle(d)
+            else:
+                res["landed"][d] = res["arrived"][d] = True
+                self._settle(d)
+        elif t >= a.limit[d]:
+            res["failure"][d] = "no touchdown within the landing time limit"
+        else:
+            return False
+        return True
+
+    def _failsafe(self, d: np.ndarray, p: np.ndarray, a: MacroActions) -> None:
+        """The battery failsafe: drones ``d`` at ``p`` (m, 3) land where they are, on the
+        reserve (the cut-off's or the budget's)."""
+        c = self.config
+        a.emergency[d] = np.where(self.battery.below_cutoff[d], CUTOFF, EMERGENCY_LANDING)
+        a.land[d], a.t[d], a.limit[d] = True, 0.0, c.land_time_limit
+        end = np.stack([p[:, 0], p[:, 1], np.full(len(d), self.touch_z + 0.3)], 1)
+        self.refs.set(d, p, end, np.full(len(d), c.land_duration), True)
+        a.goal[d] = np.stack([p[:, 0], p[:, 1], np.full(len(d), self.touch_z)], 1)

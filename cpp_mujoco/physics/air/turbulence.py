@@ -33,7 +33,6 @@ MAX_ALTITUDE_FT = 1000.0
 # the vehicle; at hover it would freeze the gust (T → ∞), while real turbulence also evolves in
 # time. 1 m/s bounds the time scales at the standard's lengths: L_u/1 m/s ≈ 43 s, L_w ≈ 6 s at 6 m.
 MIN_AIRSPEED = 1.0
-_SQRT3 = math.sqrt(3.0)
 
 
 def check_level(level: object, altitude_m: float) -> None:
@@ -116,49 +115,37 @@ def second_order(r: float) -> tuple[float, ...]:
 
 
 class DrydenTurbulence:
-    """The three forming filters, advanced by ``dt`` per :meth:`step` at the given airspeed.
+    """The three forming filters' exact coefficients at the control rate ``dt``, for the air
+    moving past at a given airspeed (the filters run in the tick's kernel,
+    :func:`~cpp_mujoco.physics.control.kernels.dryden_step`).
 
-    Plain-float state and arithmetic; normals come from the episode's generator in blocks. The
-    airspeed in the time scales is rounded to a geometric grid of ``airspeed_step`` (relative,
-    default 0.5 %: T = L/V off by at most 0.25 %) so that each tick looks its coefficients up
-    instead of recomputing them (≈ 10 µs) as the UAV's airspeed changes; 0 uses V exactly. The
-    rounding keeps every axis exactly stationary with its σ: only its time scale is rounded.
+    The airspeed in the time scales is rounded to a geometric grid of ``airspeed_step``
+    (relative, default 0.5 %: T = L/V off by at most 0.25 %) so that each tick looks its
+    coefficients up (:class:`~cpp_mujoco.physics.air.wind.Wind` tables them) instead of
+    recomputing them (≈ 10 µs) as the UAV's airspeed changes. The rounding keeps every axis
+    exactly stationary with its σ: only its time scale is rounded.
     """
 
     def __init__(
         self, params: DrydenParams, dt: float, min_airspeed: float = MIN_AIRSPEED,
         airspeed_step: float = 0.005,
     ):  # fmt: skip
+        if not airspeed_step > 0:
+            raise ValueError("the turbulence tables its coefficients: airspeed_step must be > 0")
         self.params, self.dt, self.min_airspeed = params, dt, min_airspeed
         p = params
-        self._gain = (p.sigma_u, 0.5 * p.sigma_v, 0.5 * p.sigma_w)
-        self._per_log = 1.0 / math.log1p(airspeed_step) if airspeed_step > 0 else 0.0
-        self._state = [0.0] * 5  # u; v (2 states); w (2 states)
-        self._noise: list[float] = []
-        self._rng: np.random.Generator | None = None
-        self._cache: dict[float, tuple] = {}
-        self._key = math.nan
-        self._coef: tuple = ()
-
-    def reset(self, rng: np.random.Generator) -> None:
-        """A new episode: the states drawn from their stationary distribution (N(0, I))."""
-        self._rng, self._noise = rng, []
-        self._state = [self._normal() for _ in range(5)]
-
-    def _normal(self) -> float:
-        if not self._noise:  # one numpy call per 1000 samples
-            self._noise = self._rng.standard_normal(1000).tolist()
-        return self._noise.pop()
+        self.gain = (p.sigma_u, 0.5 * p.sigma_v, 0.5 * p.sigma_w)
+        self.per_log = 1.0 / math.log1p(airspeed_step)
 
     def effective_airspeed(self, airspeed: float) -> float:
         """The V (m/s) the time scales use for ``airspeed``: at least ``min_airspeed``, rounded
         to the grid."""
         airspeed = max(airspeed, self.min_airspeed)
-        if not self._per_log:
-            return airspeed
-        return math.exp(round(math.log(airspeed) * self._per_log) / self._per_log)
+        return math.exp(round(math.log(airspeed) * self.per_log) / self.per_log)
 
-    def _coefficients(self, airspeed: float) -> tuple:
+    def coefficients(self, airspeed: float) -> tuple:
+        """The 16 coefficients of one tick at ``airspeed`` (m/s, used as given): u's (decay,
+        kick), then v's and w's :func:`second_order`."""
         p, dt = self.params, self.dt
         return (
             *first_order(dt * airspeed / p.length_u),
@@ -166,36 +153,15 @@ class DrydenTurbulence:
             *second_order(dt * airspeed / p.length_w),
         )
 
-    def step(self, airspeed: float) -> tuple[float, float, float]:
-        """Advance one interval with the air moving past at ``airspeed`` (m/s, see
-        :meth:`effective_airspeed`); the gusts (u along, v across the mean wind, w up), m/s."""
-        airspeed = max(airspeed, self.min_airspeed)
-        key = round(math.log(airspeed) * self._per_log) if self._per_log else airspeed
-        if key != self._key:
-            coef = self._cache.get(key)
-            if coef is None:
-                if len(self._cache) > 4096:  # bounded: a pathological airspeed history
-                    self._cache.clear()
-                coef = self._cache[key] = self._coefficients(self.effective_airspeed(airspeed))
-            self._key, self._coef = key, coef
-        au, ku, v11, v12, v21, v22, vl11, vl21, vl22, w11, w12, w21, w22, wl11, wl21, wl22 = (
-            self._coef
-        )
-        u, v1, v2, w1, w2 = self._state
-        n = self._normal
-        u = au * u + ku * n()
-        a, b = n(), n()
-        v1, v2 = v11 * v1 + v12 * v2 + vl11 * a, v21 * v1 + v22 * v2 + vl21 * a + vl22 * b
-        a, b = n(), n()
-        w1, w2 = w11 * w1 + w12 * w2 + wl11 * a, w21 * w1 + w22 * w2 + wl21 * a + wl22 * b
-        self._state = [u, v1, v2, w1, w2]
-        gu, gv, gw = self._gain
-        return gu * u, gv * (v1 + _SQRT3 * v2), gw * (w1 + _SQRT3 * w2)
+    def sequence(self, airspeed: float, ticks: int, rng: np.random.Generator) -> np.ndarray:
+        """``ticks`` consecutive gusts (u, v, w in m/s, (ticks, 3)) at a fixed airspeed, the
+        filters started from their stationary distribution: the flight's own kernel."""
+        from cpp_mujoco.physics.control.kernels import dryden_sequence
 
-    def sequence(self, airspeed: float, ticks: int) -> np.ndarray:
-        """``ticks`` consecutive steps at a fixed airspeed, as a (ticks, 3) array."""
-        step = self.step
-        return np.array([step(airspeed) for _ in range(ticks)])
+        state = rng.standard_normal(5)
+        coefficients = np.array(self.coefficients(self.effective_airspeed(airspeed)))
+        out = dryden_sequence(coefficients, state, rng.standard_normal(5 * ticks))
+        return out * np.array(self.gain)
 
 
 def measure(gusts: np.ndarray, dt: float, airspeed: float, params: DrydenParams) -> dict:
@@ -235,9 +201,9 @@ def statistics_table(
     for seed, level in enumerate(W20_KNOTS):
         params = DrydenParams.low_altitude(level, altitude_m)
         turbulence = DrydenTurbulence(params, dt)
-        turbulence.reset(np.random.default_rng(seed))
         speed = turbulence.effective_airspeed(airspeed)
-        stats = measure(turbulence.sequence(speed, ticks), dt, speed, params)
+        gusts = turbulence.sequence(speed, ticks, np.random.default_rng(seed))
+        stats = measure(gusts, dt, speed, params)
         for axis, s in stats.items():
             rows.append(
                 f"| {level} | {axis} | {s['sigma']:.3f} | {s['std']:.3f} | "

@@ -1,16 +1,18 @@
-"""The batched flight's control tick as two numba kernels.
+"""The flight's control tick as numba kernels: the one implementation of the reference, the
+controller, the wind and the drag.
 
-Why: as numpy, a tick is ≈ 150 calls, each microseconds of dispatch over a short array.
+Why compiled: as numpy, a tick is ≈ 150 calls, each microseconds of dispatch over a short array.
 Compiled, the per-drone arithmetic is a loop over plain doubles in two calls: :func:`sense`
 (rotation, failure checks, no-fly count, reference, tracking, camera and done checks) and
 :func:`control` (wind, observer, controller, mixer, drag; then
-:func:`~cpp_mujoco.physics.power.kernels.power`: energy, battery). Every expression keeps the
-order of its scalar model, without fastmath (exp, log, hypot are the C library's). The kernels
-work on the state arrays of :mod:`~cpp_mujoco.physics.control.state` and
-:mod:`~cpp_mujoco.physics.power.state`; what needs Python is flagged in ``code`` for
-:mod:`~cpp_mujoco.physics.compiled_tick`. Run uncompiled (``sense.py_func``) they are their own
-reference (``tests/test_compiled_tick.py``). Constants come in arguments, none from another
-module's globals: numba freezes those into its cache, which notices only this file's changes.
+:func:`~cpp_mujoco.physics.power.kernels.power`: energy, battery). No fastmath (exp, log, hypot
+are the C library's). The kernels work on the state arrays of
+:mod:`~cpp_mujoco.physics.control.controller` and :mod:`~cpp_mujoco.physics.air.wind`; what needs
+Python is flagged in ``code`` for :mod:`~cpp_mujoco.physics.tick`. :func:`wind` and
+:func:`thrusts` are the same rules as array parts (:mod:`~cpp_mujoco.physics.parts`). Run
+uncompiled (``sense.py_func``) they are their own reference (``tests/test_compiled_tick.py``).
+Constants come in arguments, none from another module's globals: numba freezes those into its
+cache, which notices only this file's changes.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ _SQRT3 = math.sqrt(3.0)
 def sense(i, st, q0, v0, c, on, bad, bad0, no_fly, nfz, ncon, next_frame, start, delta,
           duration, descent, end, t, t0, goal, nominal, limit, arrive, land, worst2, flying,
           arrived, R, ref, code, lists):  # fmt: skip
-    """The first half of :meth:`BatchedFlight._tick` for drones ``i``: R (m, 9), the
+    """The first half of a tick for drones ``i``: R (m, 9), the
     reference (m, 9: p, v, a) and ``code`` per drone; the drones whose action ends leave
     ``flying``. ``lists`` rows: the drones with a frame due, those flying on (but for a
     landing check), the positions in ``i`` to check. Returns (failed, due, go, check) counts."""
@@ -123,7 +125,8 @@ def sense(i, st, q0, v0, c, on, bad, bad0, no_fly, nfz, ncon, next_frame, start,
 
 @njit(cache=True)
 def _observe(d, vx, vy, vz, r, act, c, disturbance, last_vel, last_force, has_last):
-    """:meth:`GeometricController.observe` of drone ``d``."""
+    """The disturbance observer of drone ``d``: what accelerated the body beyond the rotors'
+    actual thrust and gravity, low-pass filtered and bounded."""
     dt, m, obs_tau, lim = c[5], c[8], c[15], c[16]
     total = act[0] + act[1] + act[2] + act[3]
     f0, f1, f2 = total * r[2], total * r[5], total * r[8] - m * c[3]
@@ -144,8 +147,11 @@ def _observe(d, vx, vy, vz, r, act, c, disturbance, last_vel, last_force, has_la
 
 @njit(cache=True)
 def _thrusts(d, pos, vel, r, omega, p, c, integral, disturbance, A, f):
-    """:meth:`GeometricController.__call__` and ``mix`` of drone ``d``: rotor thrusts in
-    ``f[:4]`` (``f[4:]`` scratch); ``p``: the reference (p, v, a)."""
+    """The geometric law and the mixer for drone ``d``: rotor thrusts in ``f[:4]`` (``f[4:]``
+    scratch); ``p``: the reference (p, v, a). Force: PID on position (anti-windup bound) plus
+    feedforward minus the observed disturbance, tilt limited (sink rate given up first); then
+    b3d along the force, b1d towards yaw 0, e_R = ½ vee(Rdᵀ R − Rᵀ Rd), M = −k_R e_R − k_Ω Ω +
+    Ω × JΩ."""
     kx, kv, m, ki, lim, tan_tilt, min_fz = c[6], c[7], c[8], c[9], c[10], c[11], c[12]
     weight, fmax, jx, jy, jz = c[13], c[14], c[17], c[18], c[19]
     kR0, kR1, kR2, kW0, kW1, kW2 = c[20], c[21], c[22], c[23], c[24], c[25]
@@ -220,7 +226,7 @@ def _thrusts(d, pos, vel, r, omega, p, c, integral, disturbance, A, f):
 def _mean_wind(d, x, y, z, c, steady, gust, gust_block, gust_left, last, has_last):
     """(g0, g1, w0, w1, w2, airspeed): the gusts after this tick's kick (the noise only
     peeked: nothing stored), the steady wind plus them, and the air's speed past the drone
-    (the turbulence's time scales; :meth:`BatchedWind.velocity`)."""
+    (the turbulence's time scales)."""
     w0, w1, w2 = steady[d, 0], steady[d, 1], steady[d, 2]
     g0 = g1 = 0.0
     if c[0]:
@@ -236,81 +242,165 @@ def _mean_wind(d, x, y, z, c, steady, gust, gust_block, gust_left, last, has_las
 
 
 @njit(cache=True)
-def control(i, code, st, cols, c, R, ref, motors_on, A, integral, disturbance, last_vel,
-            last_force, has_last, steady, axis, gust, gust_block, gust_left, turb, turb_block,
-            turb_left, last, has_last_pos, table, filled, keys, air, wind):  # fmt: skip
-    """The wind, observer, controller and drag of :meth:`BatchedFlight._control` for the
-    drones of ``i`` whose ``code`` is FLY: ctrl and drag force written into their state rows,
-    the air in the body frame into ``air`` (row k: the k-th of them), for
-    ``compiled_power.power``, and the wind they fly in into ``wind`` (per drone). Returns 0,
-    or NEED_NOISE / NEED_COEFFICIENTS (``keys`` written) having changed nothing. ``c``:
-    ``compiled_tick.control_constants``."""
-    q0, v0, a0, u0, x0 = cols[0], cols[1], cols[2], cols[3], cols[4]
-    gusty, turbulent, min_air, per_log = c[0] != 0.0, c[34] != 0.0, c[35], c[36]
-    gu, gv, gw, half_rho_cda, max_keys = c[37], c[38], c[39], c[33], c[c.size - 1]
-    nan_row = np.full(16, np.nan)
+def _wind_ready(i, mask, pos, c, steady, gust, gust_block, gust_left, turb_left, last, has_last,
+                filled, keys):  # fmt: skip
+    """0 when every drone ``i[j]`` with ``mask[j]`` has the normals and the turbulence
+    coefficients its wind needs this tick (their table keys written into ``keys``), else
+    NEED_NOISE or NEED_COEFFICIENTS. ``pos[j]``: drone ``i[j]``'s position."""
+    gusty, turbulent, min_air, per_log, max_keys = c[0] != 0.0, c[34] != 0.0, c[35], c[36], c[-1]
     missing = 0
-    for j in range(i.size):  # what the tick needs first: the noise, then coefficients
-        d = i[j]
-        if code[j] & 7 == FLY:
+    for j in range(i.size):
+        if mask[j]:
+            d = i[j]
             missing += (gusty and gust_left[d] < 2) or (turbulent and turb_left[d] < 5)
     if missing:
         return NEED_NOISE
     for j in range(i.size):
-        d = i[j]
-        if turbulent and code[j] & 7 == FLY:
-            speed = _mean_wind(d, st[d, q0], st[d, q0 + 1], st[d, q0 + 2], c, steady, gust,
-                               gust_block, gust_left, last, has_last_pos)[5]  # fmt: skip
+        if turbulent and mask[j]:
+            speed = _mean_wind(i[j], pos[j, 0], pos[j, 1], pos[j, 2], c, steady, gust,
+                               gust_block, gust_left, last, has_last)[5]  # fmt: skip
             key = np.rint(math.log(max(speed, min_air)) * per_log)
             if not 0.0 <= key < max_keys:
                 key = -1.0  # diverged: no table row, the turbulence turns NaN
             keys[j] = key
             missing += key >= 0.0 and (key >= filled.size or not filled[int(key)])
-    if missing:
-        return NEED_COEFFICIENTS
+    return NEED_COEFFICIENTS if missing else 0
+
+
+@njit(cache=True)
+def dryden_step(tc, s, noise, n):
+    """Dryden turbulence one tick on: the filter states ``s`` (u; v, v'; w, w') advanced with
+    the tick's coefficients ``tc`` and the normals ``noise[n-1]`` … ``noise[n-5]``; returns the
+    unscaled outputs (u, v1 + √3·v2, w1 + √3·w2)."""
+    u = tc[0] * s[0] + tc[1] * noise[n - 1]
+    a, b = noise[n - 2], noise[n - 3]
+    v1 = tc[2] * s[1] + tc[3] * s[2] + tc[6] * a
+    v2 = tc[4] * s[1] + tc[5] * s[2] + tc[7] * a + tc[8] * b
+    a, b = noise[n - 4], noise[n - 5]
+    z1 = tc[9] * s[3] + tc[10] * s[4] + tc[13] * a
+    z2 = tc[11] * s[3] + tc[12] * s[4] + tc[14] * a + tc[15] * b
+    s[0], s[1], s[2], s[3], s[4] = u, v1, v2, z1, z2
+    return u, v1 + _SQRT3 * v2, z1 + _SQRT3 * z2
+
+
+@njit(cache=True)
+def dryden_sequence(tc, s, noise):
+    """``len(noise) // 5`` ticks of :func:`dryden_step` at fixed coefficients, (ticks, 3)."""
+    ticks = noise.size // 5
+    out = np.empty((ticks, 3))
+    for k in range(ticks):
+        out[k, 0], out[k, 1], out[k, 2] = dryden_step(tc, s, noise, noise.size - 5 * k)
+    return out
+
+
+@njit(cache=True)
+def _wind_at(d, key, x, y, z, c, steady, axis, gust, gust_block, gust_left, turb, turb_block,
+             turb_left, last, has_last, table):  # fmt: skip
+    """The wind drone ``d`` at (x, y, z) flies in this tick (steady + gusts + turbulence),
+    its gusts and turbulence advanced; ``key``: its turbulence table row (−1: NaN)."""
+    g0, g1, w0, w1, w2, _ = _mean_wind(d, x, y, z, c, steady, gust, gust_block, gust_left,
+                                       last, has_last)  # fmt: skip
+    if c[0] != 0.0:
+        gust[d, 0], gust[d, 1] = g0, g1
+        gust_left[d] -= 2
+    if c[34] != 0.0:
+        last[d, 0], last[d, 1], last[d, 2], has_last[d] = x, y, z, True
+        tc = table[int(key)] if key >= 0.0 else np.full(16, np.nan)
+        n = turb_left[d]
+        turb_left[d] = n - 5
+        u, v, w = dryden_step(tc, turb[d], turb_block[d], n)
+        gust_u, gust_v, gust_w = c[37] * u, c[38] * v, c[39] * w
+        cx, cy = axis[d, 0], axis[d, 1]
+        w0, w1, w2 = w0 + gust_u * cx - gust_v * cy, w1 + gust_u * cy + gust_v * cx, w2 + gust_w
+    return w0, w1, w2
+
+
+@njit(cache=True)
+def wind(i, pos, c, steady, axis, gust, gust_block, gust_left, turb, turb_block, turb_left,
+         last, has_last, table, filled, keys, out):  # fmt: skip
+    """The wind of drones ``i`` at ``pos`` (m, 3) this tick into ``out`` (m, 3): the default
+    wind part's :meth:`~cpp_mujoco.physics.air.wind.Wind.velocity`. Returns 0, or
+    NEED_NOISE / NEED_COEFFICIENTS having changed nothing."""
+    need = _wind_ready(i, np.ones(i.size, dtype=np.bool_), pos, c, steady, gust, gust_block,
+                       gust_left, turb_left, last, has_last, filled, keys)  # fmt: skip
+    if need:
+        return need
+    for j in range(i.size):
+        out[j, 0], out[j, 1], out[j, 2] = _wind_at(
+            i[j], keys[j], pos[j, 0], pos[j, 1], pos[j, 2], c, steady, axis, gust, gust_block,
+            gust_left, turb, turb_block, turb_left, last, has_last, table,
+        )  # fmt: skip
+    return 0
+
+
+@njit(cache=True)
+def thrusts(i, pos, vel, R, omega, act, ref, c, A, integral, disturbance, last_vel, last_force,
+            has_last, out):  # fmt: skip
+    """The built-in controller as an array part: observer, geometric law and mixer for drones
+    ``i`` (row j of each array: drone ``i[j]``'s position, velocity, rotation (9), body rates,
+    rotor thrusts (4) and reference (9: p, v, a)); rotor thrusts into ``out`` (m, 4)."""
+    f = np.empty(8)
+    for j in range(i.size):
+        d = i[j]
+        _observe(d, vel[j, 0], vel[j, 1], vel[j, 2], R[j], act[j], c, disturbance, last_vel,
+                 last_force, has_last)  # fmt: skip
+        _thrusts(d, pos[j], vel[j], R[j], omega[j], ref[j], c, integral, disturbance, A, f)
+        out[j, :] = f[:4]
+
+
+@njit(cache=True)
+def control(i, code, st, cols, c, R, ref, motors_on, A, integral, disturbance, last_vel,
+            last_force, has_last, steady, axis, gust, gust_block, gust_left, turb, turb_block,
+            turb_left, last, has_last_pos, table, filled, keys, air, wind_now, given):  # fmt: skip
+    """The wind, observer, controller and drag of a tick for the drones of ``i`` whose
+    ``code`` is FLY: ctrl and drag force written into their state rows, the air in the body
+    frame into ``air`` (row k: the k-th of them), for ``power.kernels.power``, and the wind
+    they fly in into ``wind_now`` (per drone). ``given``: 1 the wind, 2 the thrusts, 3 both,
+    are a user part's, already in ``wind_now`` / the ctrl rows. Returns 0, or NEED_NOISE /
+    NEED_COEFFICIENTS (``keys`` written) having changed nothing. ``c``:
+    :func:`~cpp_mujoco.physics.tick.control_constants`."""
+    q0, v0, a0, u0, x0 = cols[0], cols[1], cols[2], cols[3], cols[4]
+    half_rho_cda = c[33]
+    own_wind, own_thrust = given & 1 == 0, given & 2 == 0
+    fly = np.empty(i.size, dtype=np.bool_)
+    pos = np.empty((i.size, 3))
+    for j in range(i.size):
+        fly[j] = code[j] & 7 == FLY
+        pos[j] = st[i[j], q0 : q0 + 3]
+    if own_wind:
+        need = _wind_ready(i, fly, pos, c, steady, gust, gust_block, gust_left, turb_left, last,
+                           has_last_pos, filled, keys)  # fmt: skip
+        if need:
+            return need
     f = np.empty(8)
     k = 0
     for j in range(i.size):
-        if code[j] & 7 != FLY:
+        if not fly[j]:
             continue
         d = i[j]
-        pos, vel, r = st[d, q0 : q0 + 3], st[d, v0 : v0 + 3], R[j]
-        # ---- the wind (BatchedWind.velocity): the gusts advance for every drone
-        g0, g1, w0, w1, w2, _ = _mean_wind(d, pos[0], pos[1], pos[2], c, steady, gust,
-                                           gust_block, gust_left, last, has_last_pos)  # fmt: skip
-        if gusty:
-            gust[d, 0], gust[d, 1] = g0, g1
-            gust_left[d] -= 2
-        if turbulent:
-            last[d, 0], last[d, 1], last[d, 2], has_last_pos[d] = pos[0], pos[1], pos[2], True
-            tc, s = table[int(keys[j])] if keys[j] >= 0.0 else nan_row, turb[d]
-            n = turb_left[d]
-            turb_left[d] = n - 5
-            u = tc[0] * s[0] + tc[1] * turb_block[d, n - 1]
-            a, b = turb_block[d, n - 2], turb_block[d, n - 3]
-            v1 = tc[2] * s[1] + tc[3] * s[2] + tc[6] * a
-            v2 = tc[4] * s[1] + tc[5] * s[2] + tc[7] * a + tc[8] * b
-            a, b = turb_block[d, n - 4], turb_block[d, n - 5]
-            z1 = tc[9] * s[3] + tc[10] * s[4] + tc[13] * a
-            z2 = tc[11] * s[3] + tc[12] * s[4] + tc[14] * a + tc[15] * b
-            s[0], s[1], s[2], s[3], s[4] = u, v1, v2, z1, z2
-            gust_u, gust_v, gust_w = gu * u, gv * (v1 + _SQRT3 * v2), gw * (z1 + _SQRT3 * z2)
-            cx, cy = axis[d, 0], axis[d, 1]
-            w0, w1, w2 = w0 + gust_u * cx - gust_v * cy, w1 + gust_u * cy + gust_v * cx, w2 + gust_w
-        wind[d, 0], wind[d, 1], wind[d, 2] = w0, w1, w2
-        f[:4] = 0.0
+        vel, r = st[d, v0 : v0 + 3], R[j]
+        if own_wind:
+            w0, w1, w2 = _wind_at(d, keys[j], pos[j, 0], pos[j, 1], pos[j, 2], c, steady, axis,
+                                  gust, gust_block, gust_left, turb, turb_block, turb_left, last,
+                                  has_last_pos, table)  # fmt: skip
+            wind_now[d, 0], wind_now[d, 1], wind_now[d, 2] = w0, w1, w2
+        else:
+            w0, w1, w2 = wind_now[d, 0], wind_now[d, 1], wind_now[d, 2]
         if motors_on[d]:
-            act = st[d, a0 : a0 + 4]
-            _observe(d, vel[0], vel[1], vel[2], r, act, c, disturbance, last_vel, last_force,
-                     has_last)  # fmt: skip
-            _thrusts(d, pos, vel, r, st[d, v0 + 3 : v0 + 6], ref[j], c, integral, disturbance,
-                     A, f)  # fmt: skip
+            if own_thrust:
+                act = st[d, a0 : a0 + 4]
+                _observe(d, vel[0], vel[1], vel[2], r, act, c, disturbance, last_vel, last_force,
+                         has_last)  # fmt: skip
+                _thrusts(d, pos[j], vel, r, st[d, v0 + 3 : v0 + 6], ref[j], c, integral,
+                         disturbance, A, f)  # fmt: skip
+                st[d, u0 : u0 + 4] = f[:4]
             bx, by, bz = vel[0] - w0, vel[1] - w1, vel[2] - w2
             air[k, 0] = r[0] * bx + r[3] * by + r[6] * bz
             air[k, 1] = r[1] * bx + r[4] * by + r[7] * bz
             air[k, 2] = r[2] * bx + r[5] * by + r[8] * bz
+        else:
+            st[d, u0 : u0 + 4] = 0.0
         k += 1
-        st[d, u0 : u0 + 4] = f[:4]
         rx, ry, rz = w0 - vel[0], w1 - vel[1], w2 - vel[2]
         kd = half_rho_cda * math.sqrt(rx * rx + ry * ry + rz * rz)
         st[d, x0], st[d, x0 + 1], st[d, x0 + 2] = kd * rx, kd * ry, kd * rz

@@ -4,7 +4,7 @@ the one physics backend of both envs, over a batch of drones.
 The env (single or vector) owns the :class:`~cpp_mujoco.grid.mdp.GridMDP` and its rules; this
 owns the drones: each reset puts a drone over its start with a pack of the episode's budget,
 each step flies the safety controller's decision (the return guard's, where it is on) through
-:class:`~cpp_mujoco.physics.batched_flight.BatchedFlight` and hands the outcome to
+:class:`~cpp_mujoco.physics.flight.Flight` and hands the outcome to
 :meth:`GridMDP.apply`. ``MuJoCo-v0`` is a batch of one of it, ``make_vec`` a batch of N, as
 ``Grid-v0`` is a batch of one ``GridMDP``.
 """
@@ -15,11 +15,11 @@ import numpy as np
 
 from cpp_mujoco.grid.mdp import GridMDP, Outcome, StepOutcome
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.action import HOVER, LAND, MOVE
 from cpp_mujoco.physics.arena import build_arena, compile_arena
-from cpp_mujoco.physics.batched_action import HOVER, LAND, MOVE
-from cpp_mujoco.physics.batched_flight import BatchedFlight
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.flight import Flight
 from cpp_mujoco.physics.return_guard import ReturnGuard
 
 BUDGET_EXHAUSTED = "budget exhausted before landing"
@@ -42,9 +42,9 @@ class FlightEpisodes:
         n = mdp.num_envs
         self.config = config
         self.model = compile_arena(build_arena(grid_map, config, fov_side))
-        self.flight = BatchedFlight(self.model, grid_map, config, n, mdp.coverage, threads)
+        self.flight = Flight(self.model, grid_map, config, n, mdp.coverage, threads)
         self.unit_energy = unit_energy(config)
-        drag = self.flight.one.drag.half_rho_cda  # the guard reads the wind off the same law
+        drag = self.flight.half_rho_cda  # the guard reads the wind off the same law
         self.guards = (
             [ReturnGuard(grid_map, self.unit_energy, drag) for _ in range(n)]
             if config.return_guard
@@ -97,7 +97,7 @@ class FlightEpisodes:
             for i in np.flatnonzero(active).tolist():
                 self.guards[i].observe(
                     int(actions[i]), bool(rejected[i]), float(result["energy"][i]),
-                    tuple(f.controller.disturbance[i]),
+                    tuple(f.law.disturbance[i]),
                 )  # fmt: skip
         budget = np.floor(self.remaining() / self.unit_energy + 1e-9).astype(mdp.budget.dtype)
         failed = result["failure"] != None  # noqa: E711 - elementwise over an object array

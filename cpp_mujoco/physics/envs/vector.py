@@ -1,8 +1,8 @@
 """The native batched physics env: ``gymnasium.make_vec("cpp_mujoco/MuJoCo-v0", num_envs=N)``.
 
-N quadrotors fly their grid actions together 
+N quadrotors fly their grid actions together
 (:class:`~cpp_mujoco.physics.envs.episodes.FlightEpisodes` on
-:class:`~cpp_mujoco.physics.batched_flight.BatchedFlight`): one control tick for all of them
+:class:`~cpp_mujoco.physics.flight.Flight`): one control tick for all of them
 (compiled with numba), their ``MjData`` stepped in one
 ``mujoco.batch`` call on ``threads`` threads. Everything around the flight is the grid vector
 env's (:class:`~cpp_mujoco.grid.vector_env.GridVectorEnv`): seeding

@@ -26,9 +26,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
+from cpp_mujoco.physics.power import kernels
+
 # Chen & Rincón-Mora 2006: V_oc(s) = −a·e^(−b·s) + c0 + c1·s + c2·s² + c3·s³ (V per cell)
 _A, _B = 1.031, 35.0
 _C = (3.685, 0.2156, -0.1178, 0.3201)
+# the curve as the kernels take it: a, b, c0…c3, then a/b, c1/2, c2/3
+OCV = np.array([_A, _B, *_C, _A / _B, _C[1] / 2, _C[2] / 3])
 
 CUTOFF = "battery voltage under the cut-off: emergency landing where it was"
 OVERLOAD = "battery cannot deliver the power: motors cut, the UAV fell"
@@ -36,26 +42,19 @@ OVERLOAD = "battery cannot deliver the power: motors cut, the UAV fell"
 
 def cell_ocv(soc: float) -> float:
     """Open-circuit voltage of one cell at state of charge ``soc`` (0..1), V."""
-    c0, c1, c2, c3 = _C
-    return -_A * math.exp(-_B * soc) + c0 + soc * (c1 + soc * (c2 + soc * c3))
+    return kernels.ocv(float(soc), OCV)
 
 
 def cell_ocv_integral(soc: float) -> float:
     """∫₀^soc V_oc(s) ds (V per unit SOC): the cell's energy per coulomb of capacity."""
-    c0, c1, c2, c3 = _C
-    s = soc
-    return _A / _B * (math.exp(-_B * s) - 1.0) + s * (c0 + s * (c1 / 2 + s * (c2 / 3 + s * c3 / 4)))
+    return kernels.ocv_integral(float(soc), OCV)
 
 
 def pack_current(v_oc: float, resistance: float, power: float) -> float | None:
     """Current (A) at which a source of ``v_oc`` behind ``resistance`` delivers ``power`` W;
-    None when it cannot (V_oc² < 4RP). The smaller root, written cancellation-free."""
-    if power <= 0.0:
-        return 0.0
-    disc = v_oc * v_oc - 4.0 * resistance * power
-    if disc < 0.0:
-        return None
-    return 2.0 * power / (v_oc + math.sqrt(disc))
+    None when it cannot (V_oc² < 4RP)."""
+    current = kernels.current_of(float(v_oc), float(resistance), float(power))
+    return None if current < 0.0 else current
 
 
 @dataclass(frozen=True)
@@ -101,78 +100,41 @@ class PackSpec:
 
 
 class Battery:
-    """The pack's state over one episode, integrated once per control tick.
+    """The packs of ``n`` drones over their episodes, drawn from once per control tick by the
+    compiled :func:`~cpp_mujoco.physics.power.kernels.power` (the load's electrical power in,
+    the chemical energy removed out; the motors stop when a pack cannot carry the load, and
+    :attr:`failure` says why). :attr:`below_cutoff`: the last tick's terminal voltage sagged
+    under the cut-off. ``drawn_j = load_j + loss_j`` holds to rounding: the three are
+    accumulated from the same current."""
 
-    ``draw(power, dt)`` takes the load's electrical power (W, whatever model computes it) and
-    returns the chemical energy removed (J), or None when the pack cannot carry the load (then
-    :attr:`failure` says why and nothing is drawn). :attr:`below_cutoff` says whether the last
-    tick's terminal voltage sagged under the cut-off. ``drawn_j = load_j + loss_j`` holds to
-    rounding: the three are accumulated from the same current.
-    """
-
-    def __init__(self, spec: PackSpec):
+    def __init__(self, spec: PackSpec, n: int):
         self.spec = spec
-        self.reset(math.inf)
+        self.charge_c = np.full(n, math.inf)  # coulombs per unit SOC
+        self.soc = np.full(n, spec.reference_soc)
+        self.current = np.zeros(n)
+        self.drawn_j, self.load_j, self.loss_j = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.below_cutoff = np.zeros(n, dtype=bool)
+        self.failure = np.full(n, None, dtype=object)
+        self.f_soc = np.array([cell_ocv_integral(s) for s in self.soc])  # F(soc), the next f0
 
-    def reset(self, capacity_j: float) -> None:
-        """A fresh pack holding ``capacity_j`` J of drawable energy (SOC 1 → reserve)."""
+    def reset(self, i: int, capacity_j: float) -> None:
+        """Pack ``i`` is fresh, holding ``capacity_j`` J of drawable energy (SOC 1 → reserve);
+        an unlimited one (inf) sits at ``reference_soc``."""
         s = self.spec
         if math.isinf(capacity_j):
-            self.charge_c = math.inf  # coulombs per unit SOC
-            self.soc = s.reference_soc
+            self.charge_c[i], self.soc[i] = math.inf, s.reference_soc
         else:
             window = cell_ocv_integral(1.0) - cell_ocv_integral(s.reserve)
-            self.charge_c = capacity_j / (s.cells * window)
-            self.soc = 1.0
-        self.current = 0.0
-        self.drawn_j = self.load_j = self.loss_j = 0.0
-        self.failure: str | None = None
-        self.below_cutoff = False
+            self.charge_c[i], self.soc[i] = capacity_j / (s.cells * window), 1.0
+        self.current[i] = 0.0
+        self.drawn_j[i] = self.load_j[i] = self.loss_j[i] = 0.0
+        self.below_cutoff[i], self.failure[i] = False, None
+        self.f_soc[i] = cell_ocv_integral(self.soc[i])
 
-    @property
-    def ocv(self) -> float:
-        """Open-circuit voltage of the pack now, V."""
-        return self.spec.cells * cell_ocv(self.soc)
+    def ocv(self) -> np.ndarray:
+        """Open-circuit voltage of each pack now, V."""
+        return self.spec.cells * np.array([cell_ocv(s) for s in self.soc])
 
-    @property
-    def voltage(self) -> float:
-        """Terminal voltage at the last tick's current, V."""
-        return self.ocv - self.current * self.spec.resistance
-
-    def draw(self, power: float, dt: float) -> float | None:
-        """Carry ``power`` W for ``dt`` s; chemical J removed, or None (see :attr:`failure`)."""
-        s = self.spec
-        n, r, q, s0 = s.cells, s.resistance, self.charge_c, self.soc
-        v = n * cell_ocv(s0)
-        current = pack_current(v, r, power)
-        if current is None:
-            self.failure = OVERLOAD
-            return None
-        s1 = s0
-        # the OCV averaged over the tick's charge (exact ∫V_oc dq); one or two fixed-point
-        # passes converge to rounding, as a tick moves the SOC by well under 1e-3
-        for _ in range(3):
-            if math.isinf(q) or current == 0.0:
-                break
-            s1 = s0 - current * dt / q
-            v = n * (cell_ocv_integral(s0) - cell_ocv_integral(s1)) / (s0 - s1)
-            current = pack_current(v, r, power)
-            if current is None:
-                self.failure = OVERLOAD
-                return None
-        if not math.isinf(q) and current > 0.0:
-            s1 = s0 - current * dt / q
-            v = n * (cell_ocv_integral(s0) - cell_ocv_integral(s1)) / (s0 - s1)
-        loss = current * current * r * dt
-        chem = v * current * dt  # = n·q·(F(s0) − F(s1)) exactly, = load + loss to rounding
-        self.soc = max(s1, 0.0)
-        self.current = current
-        self.below_cutoff = v - current * r < n * s.cutoff_v
-        self.drawn_j += chem
-        self.load_j += power * dt if power > 0.0 else 0.0
-        self.loss_j += loss
-        return chem
-
-    def idle(self) -> None:
-        """No load any more (motors cut or landed): the terminal voltage recovers to V_oc."""
-        self.current = 0.0
+    def voltage(self) -> np.ndarray:
+        """Terminal voltage of each pack at its last tick's current, V."""
+        return self.ocv() - self.current * self.spec.resistance

@@ -1,13 +1,11 @@
-"""Energy, the forward-flight power ratio and the battery per drone, compiled (numba), on the
-state of :class:`~cpp_mujoco.physics.power.state.BatchedEnergy` and
-:class:`~cpp_mujoco.physics.power.state.BatchedBattery`: :func:`power`, the last kernel of a
-compiled tick (:mod:`~cpp_mujoco.physics.compiled_tick`), after
+"""Energy, the forward-flight power ratio and the battery per drone, compiled (numba): the one
+implementation of the rules of :mod:`~cpp_mujoco.physics.power.rotor` and
+:mod:`~cpp_mujoco.physics.power.battery`, which hold their constants and state. :func:`power` is
+the last kernel of a tick (:mod:`~cpp_mujoco.physics.tick`), after
 :func:`~cpp_mujoco.physics.control.kernels.control` has written the drones' commands.
 
-Each expression in its scalar twin's order (:mod:`~cpp_mujoco.physics.power.rotor`,
-:mod:`~cpp_mujoco.physics.power.battery`), no fastmath. Every
-constant comes in an argument, none from another module's globals: numba would freeze those
-into its cache, which only notices changes to this file.
+No fastmath. Every constant comes in an argument, none from another module's globals: numba
+would freeze those into its cache, which only notices changes to this file.
 """
 
 from __future__ import annotations
@@ -18,24 +16,24 @@ from numba import njit
 
 
 @njit(cache=True)
-def _ocv(s, k):  # k: compiled_tick.OCV
+def ocv(s, k):
+    """Open-circuit voltage of one cell at state of charge ``s`` (V); ``k``:
+    :data:`~cpp_mujoco.physics.power.battery.OCV`."""
     return -k[0] * math.exp(-k[1] * s) + k[2] + s * (k[3] + s * (k[4] + s * k[5]))
 
 
 @njit(cache=True)
-def _ocv_integral(s, k):
-    """``batched_power._ocv_integral`` (the scalar's order)."""
+def ocv_integral(s, k):
+    """∫₀^s V_oc (V per unit SOC): a cell's energy per coulomb of capacity, in closed form."""
     e = math.exp(-k[1] * s) - 1.0
     return s * (k[2] + s * (k[7] + s * (k[8] + s * k[5] / 4))) + e * k[6]
 
 
 @njit(cache=True)
-def _ratio(thrust, v_par, v_perp, f):
-    """:meth:`ForwardFlightPower.ratio`; ``f``: inv_2rho_a, vrs, ct_rho_a, kappa, fm, k_mu,
-    p0, steps."""
-    vh2 = thrust * f[0]
-    vh = math.sqrt(vh2)
-    vp = max(v_perp, -f[1] * vh)
+def induced(vh2, v_par, vp, f):
+    """Glauert's induced velocity (m/s) of one rotor from v_h², V∥ and the clamped V⊥: start
+    above the root, at the axial solution of v(v + V⊥) = v_h² (exact at V∥ = 0) or v_h²/V∥,
+    whichever is smaller; g(v) = v²((v + V⊥)² + V∥²) − v_h⁴ then descends to it (Newton)."""
     v = -0.5 * vp + math.sqrt(0.25 * vp * vp + vh2)
     if v_par != 0.0:
         vpar2, vh4 = v_par * v_par, vh2 * vh2
@@ -45,13 +43,28 @@ def _ratio(thrust, v_par, v_perp, f):
             s = v + vp
             q = s * s + vpar2
             v -= (v * v * q - vh4) / (2.0 * v * (q + v * s))
+    return v
+
+
+@njit(cache=True)
+def ratio(thrust, v_par, v_perp, f):
+    """One rotor's mechanical power in moving air over its still-air power at the same thrust
+    (:class:`~cpp_mujoco.physics.power.rotor.ForwardFlightPower`); ``f``: its
+    :meth:`~cpp_mujoco.physics.power.rotor.ForwardFlightPower.constants`."""
+    vh2 = thrust * f[0]
+    vh = math.sqrt(vh2)
+    vp = max(v_perp, -f[1] * vh)
+    v = induced(vh2, v_par, vp, f)
     mu2 = v_par * v_par * f[2] / thrust
+    # P = T(κ v_i + V⊥) + P0(1 + Kμ²), over T·v_h/FM; never below zero (no regeneration)
     r = (f[3] * v + f[4] * vp) / vh + f[6] * (1.0 + f[5] * mu2)
     return r if r > 0.0 else 0.0
 
 
 @njit(cache=True)
-def _current(v, res, power):  # pack_current, −1.0 where the pack cannot
+def current_of(v, res, power):
+    """Current (A) at which a source of ``v`` behind ``res`` delivers ``power`` W: the
+    smaller root of V·I − I²R = P, written cancellation-free; −1.0 where it cannot (V² < 4RP)."""
     if power <= 0.0:
         return 0.0
     disc = v * v - 4.0 * res * power
@@ -63,13 +76,14 @@ def _current(v, res, power):  # pack_current, −1.0 where the pack cannot
 @njit(cache=True)
 def _draw(d, power, dt, cells, res, cutoff, k, charge_c, soc, current, drawn_j, load_j,
           loss_j, below_cutoff, f_soc):  # fmt: skip
-    """:meth:`Battery.draw` of pack ``d``: (chemical J, whether the pack could carry
-    ``power``). ``k``: ``compiled_tick.OCV``; ``f_soc``: F(soc) per pack, kept as the numpy
-    twin keeps it."""
+    """Carry ``power`` W for ``dt`` s from pack ``d``: (chemical J removed, whether the pack
+    could carry it). The OCV is averaged over the tick's charge (exact ∫V_oc dq); a few
+    fixed-point passes converge to rounding, as a tick moves the SOC by well under 1e-3.
+    ``chem`` = load + I²R loss to rounding. ``k``: the OCV curve; ``f_soc``: F(soc) per pack."""
     q, s0, f0 = charge_c[d], soc[d], f_soc[d]
     finite = not math.isinf(q)
-    v = cells * _ocv(s0, k)
-    cur = _current(v, res, power)
+    v = cells * ocv(s0, k)
+    cur = current_of(v, res, power)
     if cur < 0.0:
         return math.nan, False
     s1, f1 = s0, f0
@@ -77,19 +91,19 @@ def _draw(d, power, dt, cells, res, cutoff, k, charge_c, soc, current, drawn_j, 
         if not finite or cur == 0.0:
             break
         s1 = s0 - cur * dt / q
-        f1 = _ocv_integral(s1, k)
+        f1 = ocv_integral(s1, k)
         v = cells * (f0 - f1) / (s0 - s1)
-        cur = _current(v, res, power)
+        cur = current_of(v, res, power)
         if cur < 0.0:
             return math.nan, False
     if finite and cur > 0.0:
         s1 = s0 - cur * dt / q
-        f1 = _ocv_integral(s1, k)
+        f1 = ocv_integral(s1, k)
         v = cells * (f0 - f1) / (s0 - s1)
     loss = cur * cur * res * dt
     chem = v * cur * dt
     soc[d] = max(s1, 0.0)
-    f_soc[d] = f1 if s1 >= 0.0 else _ocv_integral(soc[d], k)
+    f_soc[d] = f1 if s1 >= 0.0 else ocv_integral(soc[d], k)
     current[d] = cur
     below_cutoff[d] = v - cur * res < cells * cutoff
     drawn_j[d] += chem
@@ -100,8 +114,8 @@ def _draw(d, power, dt, cells, res, cutoff, k, charge_c, soc, current, drawn_j, 
 
 @njit(cache=True)
 def _energy(act, f, air0, air1, air2, c, decay, ff):
-    """:class:`IntervalEnergy` (J of the tick) from the rotor states and commands;
-    ``ff[8]`` says whether the forward-flight ratio applies."""
+    """J of one tick (:class:`~cpp_mujoco.physics.power.rotor.IntervalEnergy`) from the rotor
+    states and commands; ``ff[8]`` says whether the forward-flight ratio applies."""
     coef, idle, edt, mean_decay = c[26], c[27], c[28], c[29]
     forward = ff[8] != 0.0
     v_par = math.hypot(air0, air1) if forward else 0.0
@@ -116,7 +130,7 @@ def _energy(act, f, air0, air1, air2, c, decay, ff):
         if forward:
             t = u + dd * mean_decay
             if t > 0.0:
-                rotor *= _ratio(t, v_par, air2, ff)
+                rotor *= ratio(t, v_par, air2, ff)
         total += rotor
     return (total * coef + idle) * edt
 
@@ -124,11 +138,11 @@ def _energy(act, f, air0, air1, air2, c, decay, ff):
 @njit(cache=True)
 def power(go, st, cols, c, air, motors_on, t, energy_used, capacity, decay, ff, charge_c, soc,
           current, drawn_j, load_j, loss_j, below_cutoff, f_soc, flags):  # fmt: skip
-    """The energy and battery of :meth:`BatchedFlight._control` for drones ``go`` (their ctrl
+    """The energy and battery of a tick for drones ``go`` (their ctrl
     written, ``air`` row k the k-th's air in the body frame): the energy drawn, or the motors
     cut. ``flags`` per drone: 1 the pack could not carry the load, 2 the failsafe may land it;
     returns how many are flagged. ``c``: ``compiled_tick.control_constants``."""
-    a0, u0, dt, cells, res, cutoff, ocv = cols[2], cols[3], c[5], c[30], c[31], c[32], c[40:49]
+    a0, u0, dt, cells, res, cutoff, curve = cols[2], cols[3], c[5], c[30], c[31], c[32], c[40:49]
     flagged = 0
     for k in range(go.size):
         d = go[k]
@@ -137,7 +151,7 @@ def power(go, st, cols, c, air, motors_on, t, energy_used, capacity, decay, ff, 
             continue
         act, f = st[d, a0 : a0 + 4], st[d, u0 : u0 + 4]
         joules = _energy(act, f, air[k, 0], air[k, 1], air[k, 2], c, decay, ff)
-        chem, ok = _draw(d, joules / dt, dt, cells, res, cutoff, ocv, charge_c, soc, current,
+        chem, ok = _draw(d, joules / dt, dt, cells, res, cutoff, curve, charge_c, soc, current,
                          drawn_j, load_j, loss_j, below_cutoff, f_soc)  # fmt: skip
         if math.isnan(chem):  # the pack cannot carry the load: the motors stop, a fall begins
             motors_on[d] = False

@@ -23,6 +23,9 @@ import math
 from dataclasses import dataclass
 from math import sqrt
 
+import numpy as np
+
+from cpp_mujoco.physics.power import kernels
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
 
 
@@ -56,10 +59,9 @@ class RotorAero:
 
 class ForwardFlightPower:
     """Per-rotor power in moving air, normalised so that it equals :class:`PowerModel` in still
-    air at every thrust (both scale as T^1.5 there).
-
-    ``ratio(T, V∥, V⊥)`` is P_forward / P_hover for one rotor; :meth:`power` the battery draw.
-    """
+    air at every thrust (both scale as T^1.5 there). The rule is the compiled
+    :func:`~cpp_mujoco.physics.power.kernels.ratio` (P_forward / P_hover for one rotor); this
+    holds its constants (:meth:`constants`)."""
 
     def __init__(
         self, params: QuadrotorParams, air_density: float = 1.225, aero: RotorAero = RotorAero()
@@ -79,60 +81,31 @@ class ForwardFlightPower:
         self.motor_efficiency = params.power_efficiency / fm  # motor × ESC
         self.k_mu = aero.profile_mu_factor
         self.vrs = aero.vrs_limit
-        self.steps = range(aero.newton_steps)
+
+    def constants(self) -> np.ndarray:
+        """The kernels' ``f``: inv_2rho_a, vrs, ct_rho_a, kappa, fm, k_mu, p0, Newton steps, 1."""
+        return np.array([
+            self.inv_2rho_a, self.vrs, self.ct_rho_a, self.kappa, self.fm, self.k_mu, self.p0,
+            self.aero.newton_steps, 1.0,
+        ])  # fmt: skip
 
     def induced_velocity(self, thrust: float, v_par: float, v_perp: float) -> float:
         """Glauert's v_i (m/s) for one rotor, V⊥ clamped at −vrs_limit·v_h first."""
         vh2 = thrust * self.inv_2rho_a
-        return self._solve(vh2, v_par, max(v_perp, -self.vrs * sqrt(vh2)))
-
-    def _solve(self, vh2: float, v_par: float, vp: float) -> float:
-        # start above the root: the axial solution of v(v + V⊥) = v_h² (exact at V∥ = 0) or
-        # v_h²/V∥, whichever is smaller; g(v) = v²((v + V⊥)² + V∥²) − v_h⁴ then descends to it
-        v = -0.5 * vp + sqrt(0.25 * vp * vp + vh2)
-        if v_par:
-            vpar2, vh4 = v_par * v_par, vh2 * vh2
-            if vh2 < v * v_par:
-                v = vh2 / v_par
-            for _ in self.steps:
-                s = v + vp
-                q = s * s + vpar2
-                v -= (v * v * q - vh4) / (2.0 * v * (q + v * s))
-        return v
-
-    def ratio(self, thrust: float, v_par: float, v_perp: float) -> float:
-        """One rotor's mechanical power over its still-air power at the same thrust."""
-        vh2 = thrust * self.inv_2rho_a
-        vh = sqrt(vh2)
-        vp = max(v_perp, -self.vrs * vh)
-        v = self._solve(vh2, v_par, vp)
-        mu2 = v_par * v_par * self.ct_rho_a / thrust
-        # P = T(κ v_i + V⊥) + P0(1 + Kμ²), over T·v_h/FM; never below zero (no regeneration)
-        r = (self.kappa * v + self.fm * vp) / vh + self.p0 * (1.0 + self.k_mu * mu2)
-        return r if r > 0.0 else 0.0
+        return kernels.induced(vh2, v_par, max(v_perp, -self.vrs * sqrt(vh2)), self.constants())
 
     def power(self, thrusts, air_body) -> float:
         """W drawn with rotor ``thrusts`` (N) and the body's velocity relative to the air in
         the body frame, ``air_body`` (m/s; z along the rotor axes)."""
-        v_par, v_perp = math.hypot(air_body[0], air_body[1]), air_body[2]
+        v_par, v_perp, f = math.hypot(air_body[0], air_body[1]), air_body[2], self.constants()
         c = self.hover.coef
-        total = sum(c * t**1.5 * self.ratio(t, v_par, v_perp) for t in thrusts if t > 0.0)
+        total = sum(c * t**1.5 * kernels.ratio(t, v_par, v_perp, f) for t in thrusts if t > 0.0)
         return self.hover.avionics + total
 
 
-def air_in_body(vel, wind, R) -> tuple[float, float, float]:
-    """Body velocity relative to the air (``vel`` − ``wind``, world) in the body frame; ``R`` is
-    the row-major body→world rotation."""
-    vx, vy, vz = vel[0] - wind[0], vel[1] - wind[1], vel[2] - wind[2]
-    return (
-        R[0] * vx + R[3] * vy + R[6] * vz,
-        R[1] * vx + R[4] * vy + R[7] * vz,
-        R[2] * vx + R[5] * vy + R[8] * vz,
-    )
-
-
 class IntervalEnergy:
-    """Energy of ``n`` MuJoCo steps holding ``ctrl`` constant, summed step by step.
+    """The energy of ``substeps`` MuJoCo steps holding ``ctrl`` constant, summed step by step
+    (the rule: :func:`~cpp_mujoco.physics.power.kernels.power`; here its constants).
 
     With ``dyntype="filter"`` MuJoCo integrates the rotor state by explicit Euler,
     ``act ← act + dt·(ctrl − act)/τ``, and each step's force is the ``act`` at its start — so the
@@ -140,9 +113,9 @@ class IntervalEnergy:
     the interval: ``act_k = ctrl + (act_0 − ctrl)·aᵏ`` with ``a = 1 − dt/τ``. Summing
     P(act_k)·dt over k is the physics-step integral, at controller-rate cost.
 
-    With ``forward`` (and the tick's ``air`` velocity in the body frame) each rotor's per-step
-    hover integral is scaled by its forward-flight :meth:`ForwardFlightPower.ratio`, evaluated
-    once per tick at the rotor's mean thrust over the interval and the tick's airspeed.
+    With ``forward`` each rotor's per-step hover integral is scaled by its forward-flight
+    ratio, evaluated once per tick at the rotor's mean thrust over the interval and the tick's
+    airspeed.
     """
 
     def __init__(
@@ -154,31 +127,11 @@ class IntervalEnergy:
         forward: ForwardFlightPower | None = None,
     ):
         a = 1.0 - timestep / motor_tau
-        self.decay = tuple(a**k for k in range(substeps))
-        self.mean_decay = sum(self.decay) / substeps
+        self.decay = np.array([a**k for k in range(substeps)])
+        self.mean_decay = sum(a**k for k in range(substeps)) / substeps
         self.power = power
         self.forward = forward
         self.dt = timestep
-
-    def __call__(self, act0, ctrl, air=None) -> float:
-        # every act_k lies between act_0 and ctrl (both >= 0), so t·√t is safe
-        ff = self.forward if air is not None else None
-        if ff is not None:
-            ratio, mean = ff.ratio, self.mean_decay
-            v_par, v_perp = math.hypot(air[0], air[1]), air[2]
-        total = 0.0
-        for a0, u in zip(act0, ctrl):  # noqa: B905 - four rotors each
-            d = a0 - u
-            rotor = 0.0
-            for w in self.decay:
-                t = u + d * w
-                rotor += t * sqrt(t)
-            if ff is not None:
-                t = u + d * mean
-                if t > 0.0:
-                    rotor *= ratio(t, v_par, v_perp)
-            total += rotor
-        return (self.power.coef * total + self.power.avionics * len(self.decay)) * self.dt
 
 
 def level_flight_power(

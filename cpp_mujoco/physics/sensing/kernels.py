@@ -2,11 +2,11 @@
 
 Why compiled: a frame tests the cells of a small window under the camera (a few dozen) against
 the footprint's four edges; as numpy that is ~40 calls over short arrays per frame, which at one
-or a few drones costs more than the physics between frames. The rule is the scalar camera's
-(:class:`~cpp_mujoco.physics.sensing.camera.CoverageCamera`) in the same floating-point order: the
-corner rays cast to the ground, the frame used only when level and every ray points down, a cell
-seen when its centre lies in the footprint's bounding box, within the nominal footprint's half
-width of the camera and on no edge's outer side. Run uncompiled (``frame.py_func``) it is its own
+or a few drones costs more than the physics between frames. The rule
+(:class:`~cpp_mujoco.physics.sensing.camera.CoverageCamera`): the corner rays cast to the ground,
+the frame used only when level and every ray points down, a cell seen when its centre lies in the
+footprint's bounding box, within the nominal footprint's half width of the camera and on no
+edge's outer side. Run uncompiled (``frame.py_func``) it is its own
 readable reference. Constants come in arguments (numba caches a module's globals frozen).
 """
 
@@ -16,6 +16,22 @@ import math
 
 import numpy as np
 from numba import njit
+
+
+@njit(cache=True)
+def corners(px, py, pz, m, rays, min_down, xs, ys):
+    """The image's ground corners (z = 0) into ``xs``, ``ys`` for a camera at (px, py, pz) with
+    camera→world rotation ``m`` (row-major 9); False as soon as a corner ray points less than
+    ``min_down`` downwards (the horizon is in view: the frame maps nothing)."""
+    for k in range(4):
+        rx, ry, rz = rays[k, 0], rays[k, 1], rays[k, 2]
+        down = -(m[6] * rx + m[7] * ry + m[8] * rz)
+        if not down >= min_down:
+            return False
+        t = pz / down
+        xs[k] = px + t * (m[0] * rx + m[1] * ry + m[2] * rz)
+        ys[k] = py + t * (m[3] * rx + m[4] * ry + m[5] * rz)
+    return True
 
 
 @njit(cache=True)
@@ -34,16 +50,9 @@ def frame(drones, cam_xpos, cam_xmat, rays, c, x_of_col, y_of_row, target, cover
         newly[j] = 0
         px, py, pz = cam_xpos[d, 0], cam_xpos[d, 1], cam_xpos[d, 2]
         m = cam_xmat[d]
-        usable = pz > 0.0 and m[8] >= cos_max_tilt  # frames tilted off nadir are not used
-        for k in range(4):
-            rx, ry, rz = rays[k, 0], rays[k, 1], rays[k, 2]
-            down = -(m[6] * rx + m[7] * ry + m[8] * rz)
-            if not down >= min_down:
-                usable = False
-                break
-            t = pz / down
-            xs[k] = px + t * (m[0] * rx + m[1] * ry + m[2] * rz)
-            ys[k] = py + t * (m[3] * rx + m[4] * ry + m[5] * rz)
+        # frames tilted off nadir are not used
+        usable = pz > 0.0 and m[8] >= cos_max_tilt
+        usable = usable and corners(px, py, pz, m, rays, min_down, xs, ys)
         if not usable or not math.isfinite(xs.sum() + ys.sum()):
             continue  # a NaN corner sees nothing (no comparison with it holds)
         x_lo, x_hi, y_lo, y_hi = xs.min(), xs.max(), ys.min(), ys.max()
@@ -70,7 +79,7 @@ def frame(drones, cam_xpos, cam_xmat, rays, c, x_of_col, y_of_row, target, cover
                 if not (col >= c_lo and col <= c_hi and abs(x - px) <= half):
                     continue
                 positive = negative = False
-                for k in range(4):  # edge corner k−1 → corner k, as inside_polygon walks it
+                for k in range(4):  # edge corner k−1 → corner k: inside on one side of every edge
                     p = (k + 3) % 4
                     cross = (xs[k] - xs[p]) * (y - ys[p]) - (ys[k] - ys[p]) * (x - xs[p])
                     positive |= cross > 0.0

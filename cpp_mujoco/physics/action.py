@@ -1,6 +1,6 @@
 """What a batch of drones is flying: the kinds of macro-action, per drone the action's running
 state (what :meth:`Flight._fly` keeps in locals), and the failed state checks of a tick — shared
-by the flight (:mod:`~.batched_flight`) and its compiled tick (:mod:`~.compiled_tick`)."""
+by the flight (:mod:`~.batched_flight`) and its compiled tick (:mod:`~cpp_mujoco.physics.tick`)."""
 
 from __future__ import annotations
 
