@@ -11,7 +11,7 @@ import importlib
 
 SECTIONS: dict[str, str] = {
     "grid": "cpp_mujoco.grid.benchmark",
-    "physics": "cpp_mujoco.physics.benchmark",
+    "physics": "cpp_mujoco.bench.physics",
     "training": "cpp_mujoco.agent.benchmark",
     "review": "cpp_mujoco.review.benchmark",
 }

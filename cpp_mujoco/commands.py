@@ -141,7 +141,7 @@ def _ray_runtime(args):
         return nullcontext()
     if args.backend != "mujoco":
         raise ValueError("--ray needs --backend mujoco (the grid protocol runs in this process)")
-    from cpp_mujoco.physics.ray_engine import ray_option_error, ray_runtime
+    from cpp_mujoco.protocol.ray_engine import ray_option_error, ray_runtime
 
     if error := ray_option_error(args):
         raise ValueError(error)

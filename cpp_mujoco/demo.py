@@ -17,7 +17,7 @@ import numpy as np
 from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, bundled_maps, load_map
-from cpp_mujoco.physics.protocol import chunk_count
+from cpp_mujoco.protocol.physics_engines import chunk_count
 from cpp_mujoco.review.results import (
     DEMO_GRID_COLUMNS,
     TRANSFER_COLUMNS,

@@ -3,7 +3,8 @@
 On the grid, episodes run together in a batched :class:`GridMDP` — in chunks of at most
 ``chunk_cells`` episode-cells, so memory does not grow with episodes × map size; each chunk is one
 :func:`~cpp_mujoco.episode.run_batch` (an episode start for the policy). In MuJoCo the episodes
-are flown one by one, over this machine's cores or over Ray (:mod:`cpp_mujoco.physics.protocol`).
+are flown one by one, over this machine's cores or over Ray
+(:mod:`cpp_mujoco.protocol.physics_engines`).
 A full grid protocol for a 16×16 map is one chunk and takes about a second for a fast policy.
 Every result carries the map it ran on (``grid_map``) and the conditions that produced its numbers.
 """
@@ -23,9 +24,9 @@ from cpp_mujoco.grid.graph import coverage_upper_bound, coverage_upper_bounds
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.io import atomic_write_text, json_default
 from cpp_mujoco.maps import GridMap, load_map
-from cpp_mujoco.physics.protocol import ENGINES  # what carries MuJoCo episodes
 from cpp_mujoco.policy import Policy, as_policy, policy_identity
 from cpp_mujoco.policy import policy_name as policy_label
+from cpp_mujoco.protocol.physics_engines import ENGINES  # what carries MuJoCo episodes
 from cpp_mujoco.protocol_optimum import optimum_of, optimum_summary
 
 PAPER_LANDING_RATIO = {"A": 0.9937, "B": 0.9978, "C": 0.9826}
@@ -175,7 +176,7 @@ def evaluate(
     ``backend="mujoco"`` flies every episode in physics, over ``workers`` processes (default:
     all cores) — or, ``engine="ray"``, as Ray tasks on the cluster at ``ray_address`` (else
     ``RAY_ADDRESS``, else a local runtime of ``workers`` CPUs); the numbers are the same on
-    either engine (:mod:`cpp_mujoco.physics.ray_engine`). ``env_kwargs``: :class:`GridConfig`
+    either engine (:mod:`cpp_mujoco.protocol.ray_engine`). ``env_kwargs``: :class:`GridConfig`
     fields (either backend) and, for MuJoCo, physics options (``wind_speed=6`` …); an option
     the backend does not know is an error.
     ``on_step(observation, actions, outcome, active)`` (grid only, one chunk) sees every batched
@@ -344,7 +345,7 @@ def _run_physics(
     engine, ray_address,
 ) -> dict:  # fmt: skip
     """Fly the protocol in MuJoCo; the env is built here first, so bad options fail at once."""
-    from cpp_mujoco.physics.protocol import fly_episodes, make_env, records_to_arrays
+    from cpp_mujoco.protocol.physics_engines import fly_episodes, make_env, records_to_arrays
 
     env_kwargs = {**physics_kwargs, "grid_config": config}
     env = make_env(grid_map, env_kwargs)

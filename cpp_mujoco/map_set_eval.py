@@ -162,7 +162,7 @@ def example_episode(result: EvaluationResult, budget: int) -> dict:
 def check_physics(spec: MapSetSpec, grid_map: GridMap, env_kwargs: dict | None = None) -> None:
     """Build the MuJoCo env of the set's first map before anything flies, so a set the physics
     cannot hold (or a bad weather option) fails at once, naming the set and its size."""
-    from cpp_mujoco.physics.protocol import make_env
+    from cpp_mujoco.protocol.physics_engines import make_env
 
     try:
         env = make_env(grid_map, {**(env_kwargs or {}), "grid_config": size_config(spec.size)})

@@ -112,7 +112,7 @@ def evaluate_in_winds(
     directions = COMPASS if wind_speed > 0 else (0.0,)
     runtime = nullcontext()
     if engine == "ray":
-        from cpp_mujoco.physics.ray_engine import ray_runtime
+        from cpp_mujoco.protocol.ray_engine import ray_runtime
 
         runtime = ray_runtime(ray_address, workers)
     with runtime:

@@ -149,7 +149,7 @@ def test_architecture_page_cites_only_files_that_exist():
 
     root = Path(__file__).resolve().parents[1]
     text = (root / "docs" / "architecture.md").read_text(encoding="utf-8")
-    folders = r"(?:scripts/|(?:grid|physics|agent|review|planners)/)?"
+    folders = r"(?:scripts/|(?:grid|physics|agent|review|planners|protocol|bench)/(?:\w+/)?)?"
     cited = set(re.findall(rf"(?<![\w/])({folders}\w+\.py)\b", text))
     assert len(cited) > 30
     missing = [

@@ -5,7 +5,7 @@ collision and constraint stages. A second copy of the model with both disabled
 (``mjDSBL_CONTACT | mjDSBL_CONSTRAINT``) skips them; the batch steps each drone on the model its
 height allows (``Batch.set_models``). In the air the full model finds no contact and builds no
 constraint, so both compute the same doubles, warmstart included: the flight is bit-identical
-(``tests/test_airborne_steps.py``), only cheaper (``python -m cpp_mujoco.physics.benchmark 4
+(``tests/test_airborne_steps.py``), only cheaper (``python -m cpp_mujoco.bench.physics 4
 --batched 128``: ``air_steps_speedup``, ``raw_air_mj_step_per_s``).
 
 A drone counts as airborne for the next call of ``nstep`` substeps when even its lowest reach

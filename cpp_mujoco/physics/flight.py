@@ -213,7 +213,7 @@ class Flight:
 
     def set_wind_direction(self, i: int, direction: float) -> None:
         """Drone ``i``'s steady wind blows from ``direction`` (degrees, as ``wind_direction``)
-        from its next episode on: the scalar wind of that configuration, so its flight is a
+        from its next episode on: the wind of that configuration, so its flight is a
         single env's with ``wind_direction=direction``."""
         self.weather.set_direction(i, direction)
 

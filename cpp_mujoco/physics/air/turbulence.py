@@ -155,13 +155,17 @@ class DrydenTurbulence:
 
     def sequence(self, airspeed: float, ticks: int, rng: np.random.Generator) -> np.ndarray:
         """``ticks`` consecutive gusts (u, v, w in m/s, (ticks, 3)) at a fixed airspeed, the
-        filters started from their stationary distribution: the flight's own kernel."""
-        from cpp_mujoco.physics.control.kernels import dryden_sequence
+        filters started from their stationary distribution: the flight's own kernel, fed the
+        normals in the order a drone's wind takes them (blocks of 1000 popped from the end)."""
+        from cpp_mujoco.physics.control.kernels import dryden_step
 
-        state = rng.standard_normal(5)
+        need = 5 + 5 * ticks
+        blocks = [rng.standard_normal(1000)[::-1] for _ in range(-(-need // 1000))]
+        taken = np.concatenate(blocks)[:need]
+        state, noise = taken[:5].copy(), taken[5:][::-1].copy()
         coefficients = np.array(self.coefficients(self.effective_airspeed(airspeed)))
-        out = dryden_sequence(coefficients, state, rng.standard_normal(5 * ticks))
-        return out * np.array(self.gain)
+        out = [dryden_step(coefficients, state, noise, noise.size - 5 * k) for k in range(ticks)]
+        return np.array(out) * np.array(self.gain)
 
 
 def measure(gusts: np.ndarray, dt: float, airspeed: float, params: DrydenParams) -> dict:

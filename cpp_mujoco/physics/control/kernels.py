@@ -284,16 +284,6 @@ def dryden_step(tc, s, noise, n):
 
 
 @njit(cache=True)
-def dryden_sequence(tc, s, noise):
-    """``len(noise) // 5`` ticks of :func:`dryden_step` at fixed coefficients, (ticks, 3)."""
-    ticks = noise.size // 5
-    out = np.empty((ticks, 3))
-    for k in range(ticks):
-        out[k, 0], out[k, 1], out[k, 2] = dryden_step(tc, s, noise, noise.size - 5 * k)
-    return out
-
-
-@njit(cache=True)
 def _wind_at(d, key, x, y, z, c, steady, axis, gust, gust_block, gust_left, turb, turb_block,
              turb_left, last, has_last, table):  # fmt: skip
     """The wind drone ``d`` at (x, y, z) flies in this tick (steady + gusts + turbulence),

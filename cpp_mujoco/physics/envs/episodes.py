@@ -20,6 +20,7 @@ from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import Flight
+from cpp_mujoco.physics.parts import Controller, WindModel
 from cpp_mujoco.physics.return_guard import ReturnGuard
 
 BUDGET_EXHAUSTED = "budget exhausted before landing"
@@ -28,7 +29,9 @@ BUDGET_EXHAUSTED = "budget exhausted before landing"
 class FlightEpisodes:
     """``n`` drones over ``grid_map`` flying the episodes of ``mdp`` (its coverage rows are the
     ones the cameras mark). ``threads``: threads stepping MuJoCo; ``wind_directions``: per drone,
-    the direction its steady wind blows from (degrees; None: ``config.wind_direction``)."""
+    the direction its steady wind blows from (degrees; None: ``config.wind_direction``);
+    ``controller``, ``wind``: a user's parts (:mod:`~cpp_mujoco.physics.parts`, None: the
+    built-in ones)."""
 
     def __init__(
         self,
@@ -38,11 +41,22 @@ class FlightEpisodes:
         mdp: GridMDP,
         threads: int = 1,
         wind_directions: np.ndarray | None = None,
+        controller: Controller | None = None,
+        wind: WindModel | None = None,
     ):
         n = mdp.num_envs
         self.config = config
+        for name, part, protocol in (("controller_model", controller, Controller),
+                                     ("wind_model", wind, WindModel)):  # fmt: skip
+            if part is not None and not isinstance(part, protocol):
+                raise TypeError(
+                    f"{name} must implement cpp_mujoco.physics.parts.{protocol.__name__}, "
+                    f"got {type(part).__name__}"
+                )
         self.model = compile_arena(build_arena(grid_map, config, fov_side))
-        self.flight = Flight(self.model, grid_map, config, n, mdp.coverage, threads)
+        self.flight = Flight(
+            self.model, grid_map, config, n, mdp.coverage, threads, controller=controller, wind=wind
+        )
         self.unit_energy = unit_energy(config)
         drag = self.flight.half_rho_cda  # the guard reads the wind off the same law
         self.guards = (

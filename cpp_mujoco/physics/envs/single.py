@@ -27,6 +27,7 @@ from cpp_mujoco.grid.single_env import SingleGridEnv
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.envs.episodes import BUDGET_EXHAUSTED, FlightEpisodes
+from cpp_mujoco.physics.parts import Controller, WindModel
 
 __all__ = ["BUDGET_EXHAUSTED", "MuJoCoEnv", "make_configs", "split_kwargs"]
 
@@ -68,6 +69,8 @@ class MuJoCoEnv(SingleGridEnv):
     ``controller={"position_bw": 3}``, see :class:`~cpp_mujoco.physics.config.ControllerGains`)
     or :class:`GridConfig` fields (``max_budget=50``).
     ``reset(options={"start": (row, col), "budget": int})`` as the grid env.
+    ``wind_model``, ``controller_model``: a user's parts (:mod:`~cpp_mujoco.physics.parts`)
+    instead of the built-in wind and controller.
 
     ``model`` is the MuJoCo ``MjModel``, ``data`` an ``MjData`` holding the drone's state after
     every reset and step (and at every camera frame while :attr:`on_frame` is set: a callable
@@ -83,13 +86,16 @@ class MuJoCoEnv(SingleGridEnv):
         grid_config: GridConfig | None = None,
         render_mode: str | None = None,
         render_size: tuple[int, int] = (512, 384),  # multiples of 16 for video codecs
+        wind_model: WindModel | None = None,
+        controller_model: Controller | None = None,
         **kwargs: Any,
     ):
         self.config, self.grid_config = make_configs(config, grid_config, kwargs)
         super().__init__(load_map(map), self.grid_config, render_mode)
         self.episodes = FlightEpisodes(
-            self.grid_map, self.config, self.grid_config.fov_side, self.mdp
-        )
+            self.grid_map, self.config, self.grid_config.fov_side, self.mdp,
+            controller=controller_model, wind=wind_model,
+        )  # fmt: skip
         self.model, self.flight = self.episodes.model, self.episodes.flight
         self.data = mujoco.MjData(self.model)
         self.unit_energy = self.episodes.unit_energy

@@ -32,6 +32,7 @@ from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.envs.episodes import FlightEpisodes
 from cpp_mujoco.physics.envs.single import make_configs
+from cpp_mujoco.physics.parts import Controller, WindModel
 
 
 class MuJoCoVectorEnv(GridVectorEnv):
@@ -40,7 +41,9 @@ class MuJoCoVectorEnv(GridVectorEnv):
     use is the fastest when it has the cores to itself). ``wind_directions``: one direction per
     env (degrees, as ``wind_direction``) for a batch that flies one weather from several
     directions — env i flies (and observes) what a single env with ``wind_direction`` =
-    ``wind_directions[i]`` does; ``physics_config`` then records only the first."""
+    ``wind_directions[i]`` does; ``physics_config`` then records only the first.
+    ``wind_model``, ``controller_model``: a user's parts for all drones
+    (:mod:`~cpp_mujoco.physics.parts`)."""
 
     def __init__(
         self,
@@ -52,6 +55,8 @@ class MuJoCoVectorEnv(GridVectorEnv):
         render_mode: str | None = None,
         threads: int = 1,
         wind_directions: Any = None,
+        wind_model: WindModel | None = None,
+        controller_model: Controller | None = None,
         **kwargs: Any,
     ):
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
@@ -68,8 +73,9 @@ class MuJoCoVectorEnv(GridVectorEnv):
                     f"wind_directions must be {num_envs} finite degrees, got {wind_directions!r}"
                 )
         self.episodes = FlightEpisodes(
-            self.grid_map, self.physics_config, grid.fov_side, self.mdp, threads, directions
-        )
+            self.grid_map, self.physics_config, grid.fov_side, self.mdp, threads, directions,
+            controller=controller_model, wind=wind_model,
+        )  # fmt: skip
         self.model, self.flight = self.episodes.model, self.episodes.flight
         self.unit_energy, self.guards = self.episodes.unit_energy, self.episodes.guards
         self.wind_directions = self.episodes.wind_directions

@@ -36,10 +36,11 @@ class CoverageCamera:
     A cell is seen when its centre lies in the footprint *and* within the nominal (level, cruise
     altitude) footprint around the camera's nadir point; frames more than
     ``config.max_frame_tilt_deg`` off nadir, or with the horizon in view, see nothing (why:
-    ``PhysicsConfig``). Frames are due every ``1 / config.camera_rate`` s (:attr:`next_frame`). ``cam_xpos`` (n, ncam, 3), ``cam_xmat`` (n, ncam, 9) and
-    ``clock`` (n,) are live arrays of the drones' camera poses and times (the batch's bound
-    fields: the pose MuJoCo computed in each drone's last step, as a single flight reads it
-    from its ``MjData``)."""
+    ``PhysicsConfig``). Frames are due every ``1 / config.camera_rate`` s (:attr:`next_frame`).
+
+    ``cam_xpos`` (n, ncam, 3), ``cam_xmat`` (n, ncam, 9) and ``clock`` (n,) are live arrays of
+    the drones' camera poses and times (the batch's bound fields: the pose MuJoCo computed in
+    each drone's last step)."""
 
     def __init__(
         self,

@@ -17,7 +17,7 @@ and keeps them for the job's later chunks (:func:`worker_state`); never in a poo
 where a failure would only break the pool.
 
 Two engines carry the chunks: ``"local"``, a spawn process pool on this machine, and ``"ray"``
-(:mod:`cpp_mujoco.physics.ray_engine`), a local Ray runtime or a cluster. The pool stays next to
+(:mod:`cpp_mujoco.protocol.ray_engine`), a local Ray runtime or a cluster. The pool stays next to
 Ray because Ray is an optional, heavy extra (hundreds of MB, seconds to start a runtime): the base
 install must still fly the protocol on every core, and a one-machine run gains nothing from Ray.
 On both, any exception in a worker ends the run with that exception (its message plus a note
@@ -235,7 +235,7 @@ def fly_episodes(
             env.close()
             job = Job(pickle.dumps(policy), grid_map, env_kwargs)  # unpicklable: fails here
             if engine == "ray":
-                from cpp_mujoco.physics.ray_engine import fly_on_ray
+                from cpp_mujoco.protocol.ray_engine import fly_on_ray
 
                 records = fly_on_ray(job, work, bar, workers, ray_address)
             else:

@@ -3,7 +3,7 @@
 Why Ray: the local pool ends at the cores of one machine; a wind sweep is thousands of
 independent episodes, and Ray spreads them over a cluster (``ray start --head`` on one machine,
 ``ray start --address=HEAD:6379`` on the others, then ``RAY_ADDRESS=HEAD:6379`` or
-``ray_address=`` here). Each chunk is one task running :func:`~cpp_mujoco.physics.protocol.
+``ray_address=`` here). Each chunk is one task running :func:`~cpp_mujoco.protocol.physics_engines.
 fly_chunk` on one CPU; the job (policy, map, options) is put into the object store once, and
 each worker process builds its env and policy on its first chunk of the job.
 
@@ -27,7 +27,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from cpp_mujoco.episode import EpisodeRecord
-from cpp_mujoco.physics.protocol import Job, Task, fly_chunk
+from cpp_mujoco.protocol.physics_engines import Job, Task, fly_chunk
 
 MAX_RETRIES = 3  # runs of a task whose worker process died, after the first
 INSTALL_HINT = "pip install -e .[ray]  (or: pip install 'cpp-mujoco[ray]')"

@@ -1,0 +1,1 @@
+"""Speed and memory benchmarks: commands that measure, never imported by the library."""
