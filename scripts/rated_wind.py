@@ -24,7 +24,7 @@ from pathlib import Path
 
 from cpp_mujoco.evaluate import protocol_budgets
 from cpp_mujoco.maps import bundled_maps, load_map
-from cpp_mujoco.physics.ray_engine import add_ray_options, ray_option_error, ray_runtime
+from cpp_mujoco.protocol.ray_engine import add_ray_options, ray_option_error, ray_runtime
 from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (
     RATED_COLUMNS,

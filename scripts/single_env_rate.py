@@ -1,5 +1,5 @@
 """Actions/s of one ``MuJoCo-v0`` env: random moves with 2 % landings on map A, budget 75, a new
-episode whenever one ends (the workload of ``python -m cpp_mujoco.physics.benchmark``).
+episode whenever one ends (the workload of ``python -m cpp_mujoco.bench.physics``).
 
 It uses only the env's public API, so it measures any checkout of the package: to compare two,
 alternate them on one core, e.g.::
@@ -15,15 +15,15 @@ from __future__ import annotations
 import argparse
 import time
 
+import gymnasium as gym
 import numpy as np
 
 import cpp_mujoco
-from cpp_mujoco.physics.envs.single import MuJoCoEnv
 
 
 def rate(seconds: float, map_name: str = "A", seed: int = 0) -> float:
     """Grid actions per wall-clock second over ``seconds``, after 20 warm-up actions."""
-    env = MuJoCoEnv(map=map_name)
+    env = gym.make("cpp_mujoco/MuJoCo-v0", map=map_name).unwrapped  # the env, no wrappers
     rng = np.random.default_rng(seed)
 
     def action() -> int:

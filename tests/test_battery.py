@@ -1,6 +1,8 @@
 """The LiPo pack: OCV curve, I²R loss, energy conservation with the rotors, cut-off, info and
 recording, and the calm-air budget unit it leaves intact."""
 
+import math
+
 import mujoco
 import numpy as np
 import pytest
@@ -9,11 +11,14 @@ from scipy.integrate import quad
 import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.grid.actions import NORTH, SOUTH
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.physics.action import HOVER
 from cpp_mujoco.physics.calibration import calibration, hover_power
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.envs.single import MuJoCoEnv
+from cpp_mujoco.physics.flight import Flight
 from cpp_mujoco.physics.power.battery import (
     CUTOFF,
+    OCV,
     OVERLOAD,
     Battery,
     PackSpec,
@@ -21,6 +26,7 @@ from cpp_mujoco.physics.power.battery import (
     cell_ocv_integral,
     pack_current,
 )
+from cpp_mujoco.physics.power.kernels import _draw
 from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
 from cpp_mujoco.review.recording import MissionRecorder
 from tests.test_review import rrd_entities
@@ -39,32 +45,66 @@ def test_ocv_is_monotone_in_soc_and_its_integral_is_exact():
         assert cell_ocv_integral(s) == pytest.approx(quad(cell_ocv, 0.0, s)[0], rel=1e-12)
 
 
+def draw(pack: Battery, power: float, dt: float = 0.02) -> tuple[float, bool]:
+    """Pack 0 carries ``power`` W for ``dt`` s through the kernel the flight's tick calls:
+    (chemical J removed, whether the pack could carry the load)."""
+    s = pack.spec
+    return _draw(0, power, dt, float(s.cells), s.resistance, s.cutoff_v, OCV, pack.charge_c,
+                 pack.soc, pack.current, pack.drawn_j, pack.load_j, pack.loss_j,
+                 pack.below_cutoff, pack.f_soc)  # fmt: skip
+
+
+def set_soc(pack: Battery, soc: float) -> None:
+    """Pack 0 at state of charge ``soc``, with the OCV integral the kernel starts from."""
+    pack.soc[0], pack.f_soc[0] = soc, cell_ocv_integral(soc)
+
+
 def test_higher_power_wastes_a_larger_fraction():
     fractions = []
     for power in (50.0, 150.0, 300.0, 450.0):
-        pack = Battery(SPEC)  # unlimited pack, held at the reference SOC
-        chem = pack.draw(power, 0.02)
-        assert chem == pytest.approx(pack.load_j + pack.loss_j, rel=1e-12)
-        assert pack.voltage == pytest.approx(pack.ocv - pack.current * SPEC.resistance)
-        fractions.append(pack.loss_j / pack.load_j)
+        pack = Battery(SPEC, 1)  # unlimited pack, held at the reference SOC
+        chem, ok = draw(pack, power)
+        assert ok and pack.soc[0] == SPEC.reference_soc
+        assert chem == pytest.approx(pack.load_j[0] + pack.loss_j[0], rel=1e-12)
+        assert pack.load_j[0] == pytest.approx(power * 0.02, rel=1e-12)
+        assert pack.voltage()[0] == pytest.approx(pack.ocv()[0] - pack.current[0] * SPEC.resistance)
+        # the terminal voltage times the current is the load: the smaller root of V·I − I²R = P
+        assert pack.voltage()[0] * pack.current[0] == pytest.approx(power, rel=1e-12)
+        fractions.append(pack.loss_j[0] / pack.load_j[0])
     assert all(b > 1.5 * a for a, b in zip(fractions, fractions[1:], strict=False))
     # the closed form: loss / load = I·R / (V_oc − I·R)
-    i = pack_current(pack.ocv, SPEC.resistance, 450.0)
-    assert fractions[-1] == pytest.approx(i * SPEC.resistance / (pack.ocv - i * SPEC.resistance))
+    v_oc = pack.ocv()[0]
+    i = pack_current(v_oc, SPEC.resistance, 450.0)
+    assert fractions[-1] == pytest.approx(i * SPEC.resistance / (v_oc - i * SPEC.resistance))
 
 
 def test_a_load_the_pack_cannot_deliver_is_a_battery_failure():
     # V_oc²/4R ≈ 21.9 W at the reference SOC; no cut-off, so only the overload can stop it
-    pack = Battery(PackSpec(cell_resistance=0.5, cutoff_v=0.0))
-    assert pack.draw(21.0, 0.02) is not None and pack.failure is None
-    assert pack.draw(23.0, 0.02) is None and pack.failure == OVERLOAD
+    weak = PackSpec(cell_resistance=0.5, cutoff_v=0.0)
+    pack = Battery(weak, 1)
+    chem, ok = draw(pack, 21.0)
+    assert ok and math.isfinite(chem)
+    drawn, soc = pack.drawn_j[0], pack.soc[0]
+    chem, ok = draw(pack, 23.0)
+    assert not ok and math.isnan(chem)
+    assert (pack.drawn_j[0], pack.soc[0]) == (drawn, soc)  # nothing is drawn
+    # in flight the tick marks the pack's failure, the motors stop and the UAV falls
+    config = PhysicsConfig(battery_cell_resistance=0.5, battery_cutoff_v=0.0)
+    flight = Flight.alone(OPEN, config)
+    flight.reset(0, 2, 2, math.inf, np.random.default_rng(0))
+    result = flight.fly_one(HOVER, 12)
+    assert result.failure == OVERLOAD and flight.battery.failure[0] == OVERLOAD
+    assert not flight.motors_on[0] and not result.landed
     # the cut-off is a failsafe signal, not a failure: the sag (V_oc/2 at the maximum power)
     # is flagged, and the pack still delivers
-    pack = Battery(SPEC)
-    assert pack.draw(0.1 * pack.ocv**2 / (4 * SPEC.resistance), 0.02) is not None
-    assert not pack.below_cutoff
-    assert pack.draw(0.99 * pack.ocv**2 / (4 * SPEC.resistance), 0.02) is not None
-    assert pack.below_cutoff and pack.failure is None
+    pack = Battery(SPEC, 1)
+    v_oc = pack.ocv()[0]
+    chem, ok = draw(pack, 0.1 * v_oc**2 / (4 * SPEC.resistance))
+    assert ok and math.isfinite(chem)
+    assert not pack.below_cutoff[0]
+    chem, ok = draw(pack, 0.99 * v_oc**2 / (4 * SPEC.resistance))
+    assert ok and math.isfinite(chem)
+    assert pack.below_cutoff[0] and pack.failure[0] is None
     assert pack_current(10.0, 1.0, 25.0) == pytest.approx(5.0)  # the double root
     assert pack_current(10.0, 1.0, 25.0001) is None
 
@@ -75,11 +115,13 @@ def test_defaults_leave_the_cut_off_to_overload_not_to_a_calm_budget():
     model = mujoco.MjModel.from_xml_path(str(quadrotor_xml()))
     params = QuadrotorParams.from_model(model, prefix="")
     full_throttle = hover_power(PhysicsConfig()) * params.thrust_to_weight**1.5
-    pack = Battery(SPEC)
-    pack.reset(1000.0)
-    pack.soc = SPEC.reserve
-    assert pack.draw(full_throttle, 0.02) is not None, pack.failure
-    assert pack.voltage > SPEC.cells * SPEC.cutoff_v
+    pack = Battery(SPEC, 1)
+    pack.reset(0, 1000.0)
+    set_soc(pack, SPEC.reserve)
+    chem, ok = draw(pack, full_throttle)
+    assert ok and math.isfinite(chem)
+    assert pack.voltage()[0] > SPEC.cells * SPEC.cutoff_v
+    assert not pack.below_cutoff[0]  # the flag the failsafe reads
 
 
 def test_a_calm_move_costs_the_same_unit_across_the_soc_window():
@@ -88,9 +130,10 @@ def test_a_calm_move_costs_the_same_unit_across_the_soc_window():
     load = hover_power(PhysicsConfig())
     per_soc = {}
     for soc in (1.0, SPEC.reference_soc, SPEC.reserve):
-        pack = Battery(SPEC)
-        pack.soc = soc
-        per_soc[soc] = pack.draw(load, 0.02)
+        pack = Battery(SPEC, 1)
+        set_soc(pack, soc)
+        per_soc[soc], ok = draw(pack, load)
+        assert ok
     mid = per_soc[SPEC.reference_soc]
     margin = PhysicsConfig().unit_margin
     assert per_soc[1.0] < mid < per_soc[SPEC.reserve]

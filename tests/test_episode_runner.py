@@ -12,7 +12,7 @@ from cpp_mujoco.grid.actions import ACTION_NAMES, NUM_ACTIONS
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.mission import fly_mission
-from cpp_mujoco.physics.protocol import make_env
+from cpp_mujoco.protocol.physics_engines import make_env
 from cpp_mujoco.planners import BeamSearchPlanner, SafeGreedyPlanner
 from cpp_mujoco.planners.rollout import rollout
 

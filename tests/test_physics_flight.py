@@ -3,6 +3,7 @@
 import math
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 import pytest
 
@@ -10,7 +11,8 @@ import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.arena import GridGeometry, build_arena, compile_arena
+from cpp_mujoco.physics import action as kind  # the flight's macro-action kinds
+from cpp_mujoco.physics.arena import GridGeometry
 from cpp_mujoco.physics.calibration import calibration, unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.envs.single import MuJoCoEnv
@@ -21,25 +23,26 @@ OPEN = GridMap.from_ascii(["TTTTT", "TTTTT", "TTLTT", "TTTTT", "TTTTT"], name="o
 STRIP = GridMap.from_ascii(["TTTTTT", "LLTTTT", "TTTTTT"], name="strip")
 
 
-def make_flight(grid_map=OPEN, config=CONFIG) -> Flight:
-    return Flight(compile_arena(build_arena(grid_map, config)), grid_map, config)
+def make_flight(row=2, col=2, capacity=math.inf, grid_map=OPEN, config=CONFIG) -> Flight:
+    """One drone in an arena of its own, hovering over (row, col) with ``capacity`` J."""
+    flight = Flight.alone(grid_map, config)
+    flight.reset(0, row, col, capacity, np.random.default_rng(0))
+    return flight
 
 
 def test_hover_thrust_equals_weight():
     f = make_flight()
-    f.reset(2, 2)
-    result = f.hover(12)
+    result = f.fly_one(kind.HOVER, 12)
     assert result.failure is None
-    total = f.data.actuator_force.sum()
+    total = f.copy_data(0, mujoco.MjData(f.model)).actuator_force.sum()
     assert total == pytest.approx(f.params.weight, rel=1e-3)
-    assert np.linalg.norm(f.position - f.waypoint(12)) < 0.02
+    assert np.linalg.norm(f.position(0) - f.waypoint(12)) < 0.02
 
 
 def test_one_cell_step_response():
     f = make_flight()
-    f.reset(2, 2)
     f.trace = []
-    result = f.move(13)  # east
+    result = f.fly_one(kind.MOVE, 13)  # east
     assert result.arrived and result.failure is None
     assert result.duration <= CONFIG.move_duration + 1.0
     assert result.tracking_error < CONFIG.arrive_pos_tol
@@ -163,7 +166,7 @@ def test_budget_spent_mid_move_lands_where_the_uav_is_and_ends_in_a_crash():
     assert reward == pytest.approx(0.4 * newly_seen - 0.2 - 150.0)
     # the failsafe landed it upright on its skids, on the reserve, between the two cells
     assert flight._ground_contact(0) is True
-    assert info["energy_used_j"] > flight.capacity
+    assert info["energy_used_j"] > flight.capacity[0]
     trace = np.array(flight.trace)
     along, across = np.abs(trace[-1, 1:3] - trace[0, 1:3])[::-1]  # north, east
     assert 0.3 < along < flight.config.cell_size - 0.3  # down between the cells, not at either
@@ -204,14 +207,13 @@ def test_a_landing_begun_with_budget_left_finishes_on_the_reserve():
     """On the grid a landing with one unit left always succeeds; in physics a landing that
     outlasts the budget's energy (gusts, a strong wind) touches down on the reserve, where the
     failsafe would have landed it anyway — landed, not a crash."""
-    flight = make_flight()
-    flight.reset(2, 2, capacity=5000.0)
-    flight.energy_used = 4900.0  # 100 J left of the budget: a fifth of what a landing draws
-    result = flight.land(2 * 5 + 2)
+    flight = make_flight(capacity=5000.0)
+    flight.energy_used[0] = 4900.0  # 100 J left of the budget: a fifth of what a landing draws
+    result = flight.fly_one(kind.LAND, 2 * 5 + 2)
     assert result.landed and result.failure is None
-    assert flight.energy_used > flight.capacity + 250.0
+    assert flight.energy_used[0] > flight.capacity[0] + 250.0
     # a move with the same energy left is cut short by the failsafe instead
-    flight.reset(2, 2, capacity=5000.0)
-    flight.energy_used = 4900.0
-    result = flight.move(1 * 5 + 2)
+    flight.reset(0, 2, 2, 5000.0, np.random.default_rng(0))
+    flight.energy_used[0] = 4900.0
+    result = flight.fly_one(kind.MOVE, 1 * 5 + 2)
     assert not result.landed and result.failure == EMERGENCY_LANDING

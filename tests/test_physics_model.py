@@ -1,4 +1,5 @@
-"""The quadrotor model, the arena and the pure geometry/energy pieces of the physics backend."""
+"""The quadrotor model, the arena, and the flight's camera footprint, drag, wind and energy
+against hand computations."""
 
 import math
 
@@ -7,23 +8,53 @@ import numpy as np
 import pytest
 
 from cpp_mujoco.maps import GridMap, load_map
-from cpp_mujoco.physics.air.wind import QuadraticDrag, Wind
+from cpp_mujoco.physics import action as kind  # the flight's macro-action kinds
+from cpp_mujoco.physics.air.wind import Wind
 
 # dm_control's mjcf as the arena imports it (without dm_control's headless GLFW warning)
-from cpp_mujoco.physics.arena import GridGeometry, build_arena, camera_fovy, compile_arena, mjcf
+from cpp_mujoco.physics.arena import build_arena, camera_fovy, compile_arena, mjcf
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import Flight
-from cpp_mujoco.physics.power.rotor import IntervalEnergy, PowerModel
+from cpp_mujoco.physics.power.rotor import PowerModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
-from cpp_mujoco.physics.sensing.camera import (
-    cells_in_footprint,
-    corner_rays,
-    footprint,
-    inside_polygon,
-)
 from cpp_mujoco.review.scenery import Scenery
 
 CONFIG = PhysicsConfig()
+EIGHT = GridMap.from_ascii(["TTTTTTTT"] * 3 + ["TTTTLTTT"] + ["TTTTTTTT"] * 4, name="eight")
+
+
+def posed(row: int, col: int, rot: np.ndarray, config: PhysicsConfig = CONFIG) -> Flight:
+    """One drone over ``row``, ``col`` of :data:`EIGHT` at cruise altitude, its body turned by
+    ``rot`` (body → world), MuJoCo's forward pass run: its camera pose is the flight's own."""
+    flight = Flight.alone(EIGHT, config)
+    flight.reset(0, row, col, math.inf, np.random.default_rng(0))
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rot, dtype=float).ravel())
+    q = flight.cols[0].start
+    flight.state[0, q + 3 : q + 7] = quat
+    flight.sims.forward([0])
+    return flight
+
+
+def record_ticks(flight: Flight, whole: bool = False) -> list:
+    """Per physics call of the flight (one per control tick), drone 0 as the tick left it:
+    its state row, the wind it flew in, the load energy its pack had carried, and with
+    ``whole`` a copy of its whole ``MjData`` (else None)."""
+    ticks, step = [], flight._step
+
+    def recording(drones, nstep):
+        copy = flight.copy_data(0, mujoco.MjData(flight.model)) if whole else None
+        state, wind = flight.state[0].copy(), flight.wind_now[0].copy()
+        ticks.append((state, wind, float(flight.battery.load_j[0]), copy))
+        step(drones, nstep)
+
+    flight._step = recording
+    return ticks
+
+
+def corners_sorted(points) -> np.ndarray:
+    """Polygon corners in a fixed order (by x to the micrometre, then y) to compare as sets."""
+    return np.array(sorted(map(tuple, points), key=lambda p: (round(p[0], 6), p[1])))
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +129,7 @@ def test_a_flown_episode_is_bit_identical_to_the_tiled_model():
 
 
 def test_tiles_as_model_geoms_would_not_change_the_flight():
-    """The same flight on the model plus the scenery as non-colliding geoms (what the arena was):
+    """The same flight on the model plus the scenery as non-colliding geoms:
     identical to the last bit, whatever the flight code becomes."""
     grid_map = GridMap.from_ascii(["TTN", "TLT", "YTT"])
     config = PhysicsConfig(wind_speed=4.0, gust_std=1.0)
@@ -116,11 +147,12 @@ def test_tiles_as_model_geoms_would_not_change_the_flight():
     assert tiled.ngeom == 15 + 9 + 2
     runs = []
     for model in (compile_arena(build_arena(grid_map, config)), tiled):
-        flight = Flight(model, grid_map, config)
-        flight.reset(1, 1, rng=np.random.default_rng(5))
-        results = [flight.move(5), flight.hover(5), flight.move(4), flight.land(4)]
+        flight = Flight(model, grid_map, config, 1, np.zeros((1, grid_map.target.size), bool))
+        flight.reset(0, 1, 1, math.inf, np.random.default_rng(5))
+        results = [flight.fly_one(kind.MOVE, 5), flight.fly_one(kind.HOVER, 5),
+                   flight.fly_one(kind.MOVE, 4), flight.fly_one(kind.LAND, 4)]  # fmt: skip
         assert results[-1].landed
-        runs.append([(r.energy, r.duration) for r in results] + [flight.data.qpos.tolist()])
+        runs.append([(r.energy, r.duration) for r in results] + [flight.state[0].tolist()])
     assert runs[0] == runs[1]
 
 
@@ -162,52 +194,86 @@ def test_camera_fovy_gives_three_cells_at_altitude(model):
 
 
 def test_level_footprint_is_the_three_by_three_block():
-    geo = GridGeometry(8, 8, CONFIG.cell_size)
-    x, y = geo.cell_center(3, 4)
-    poly = footprint((x, y, CONFIG.altitude), np.eye(3).ravel(), corner_rays(camera_fovy(CONFIG)))
-    cells = sorted(cells_in_footprint(poly, geo))
+    flight = posed(3, 4, np.eye(3))
+    x, y = flight.geo.cell_center(3, 4)
+    half = 1.5 * CONFIG.cell_size
+    poly = corners_sorted(flight.footprint(0))
+    expect = [(x + sx * half, y + sy * half) for sx in (-1, 1) for sy in (-1, 1)]
+    assert poly == pytest.approx(corners_sorted(expect))
+    assert flight.camera.capture(np.array([0])).tolist() == [8]  # the landing cell is no target
+    cells = np.flatnonzero(flight.coverage[0]).tolist()
     assert cells == sorted(r * 8 + c for r in (2, 3, 4) for c in (3, 4, 5))
 
 
 @pytest.mark.parametrize("theta_deg", [0.0, 10.0, 25.0])
 def test_tilted_footprint_shifts_as_geometry_says(theta_deg):
-    """A camera pitched by θ about the world y axis: the image edges along x land at
-    h·tan(±α − θ) (α the half-angle) and the footprint is a trapezoid widening away from nadir."""
-    h, fovy = 6.0, 90.0
+    """The drone pitched by θ about the world y axis: seen from its camera at (x, y, h), the
+    image edges along x land at x + h·tan(±α − θ) (α the half-angle), the footprint is a
+    trapezoid widening away from nadir, and a frame sees the cells whose centres lie in it and
+    within the nominal footprint's half width of the camera — the optical axis' among them."""
     th = math.radians(theta_deg)
     rot = np.array([[math.cos(th), 0, math.sin(th)], [0, 1, 0], [-math.sin(th), 0, math.cos(th)]])
-    poly = np.array(footprint((1.0, 2.0, h), rot.ravel(), corner_rays(fovy)))
-    a = math.radians(fovy) / 2
-    assert poly[:, 0].min() == pytest.approx(1.0 + h * math.tan(-a - th))
-    assert poly[:, 0].max() == pytest.approx(1.0 + h * math.tan(a - th))
-    for (cx, cy), sx in zip(poly, (-1, 1, 1, -1), strict=True):
-        expect_y = h * math.tan(a) / (sx * math.tan(a) * math.sin(th) + math.cos(th))
-        assert abs(cy - 2.0) == pytest.approx(expect_y)
-        assert cx == pytest.approx(1.0 + h * math.tan(sx * a - th))
-    assert inside_polygon(list(map(tuple, poly)), 1.0 - h * math.tan(th), 2.0)  # optical axis
+    flight = posed(3, 4, rot)
+    px, py, h = flight.camera.cam_xpos[0]
+    a = math.radians(flight.model.cam_fovy[flight.camera.cam_id]) / 2
+    poly = np.array(flight.footprint(0))
+    x_lo, x_hi = px + h * math.tan(-a - th), px + h * math.tan(a - th)
+    assert poly[:, 0].min() == pytest.approx(x_lo)
+    assert poly[:, 0].max() == pytest.approx(x_hi)
+    # the half width across y of the edge at x_lo (sx = −1) and at x_hi (sx = 1)
+    t, s, c = math.tan(a), math.sin(th), math.cos(th)
+    wide = {sx: h * t / (sx * t * s + c) for sx in (-1, 1)}
+    signs = [(sx, sy) for sx in (-1, 1) for sy in (-1, 1)]
+    expect = [(px + h * math.tan(sx * a - th), py + sy * wide[sx]) for sx, sy in signs]
+    assert corners_sorted(poly) == pytest.approx(corners_sorted(expect))
+    x, y = poly[:, 0], poly[:, 1]
+    assert (x * np.roll(y, -1) - np.roll(x, -1) * y).sum() > 0  # counter-clockwise
+    # the cells seen: centres in the trapezoid (its half width grows linearly from x_lo to
+    # x_hi) and within the nominal half width of the camera
+    flight.camera.capture(np.array([0]))
+    nominal = CONFIG.altitude * math.tan(a)
+    expect_cells = []
+    for cell, (cx, cy) in enumerate(flight.geo.centers()):
+        u = (cx - x_lo) / (x_hi - x_lo)
+        in_trapezoid = 0 <= u <= 1 and abs(cy - py) <= wide[-1] + u * (wide[1] - wide[-1])
+        if in_trapezoid and abs(cx - px) <= nominal and abs(cy - py) <= nominal:
+            expect_cells.append(cell)
+    seen = np.flatnonzero(flight.coverage[0]).tolist()
+    assert seen == expect_cells
+    row, col = flight.geo.cell_of(px - h * math.tan(th), py)  # where the optical axis lands
+    assert row * 8 + col in seen
 
 
 def test_footprint_rejects_horizon_frames():
     rot = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=float)  # looking sideways
-    assert footprint((0, 0, 6), rot.ravel(), corner_rays(90)) is None
+    flight = posed(3, 4, rot)
+    assert flight.footprint(0) is None
+    assert flight.camera.capture(np.array([0])).tolist() == [0]
+    assert not flight.coverage[0].any()
 
 
-def test_interval_energy_is_the_sum_over_physics_steps(model, params):
-    """The closed-form per-step thrusts equal MuJoCo's actuator forces step by step."""
-    power = PowerModel(params)
-    k = 5
-    energy = IntervalEnergy(power, model.opt.timestep, params.motor_tau, k)
-    data = mujoco.MjData(model)
-    data.qpos[2] = 5.0
-    data.act[:] = [3.0, 4.0, 5.0, 6.0]
-    ctrl = [6.0, 1.0, 3.0, 8.0]
-    data.ctrl[:] = ctrl
-    expected = energy(data.act.tolist(), ctrl)
-    total = 0.0
-    for _ in range(k):
-        mujoco.mj_step(model, data)
-        total += power.power(data.actuator_force.tolist()) * model.opt.timestep
-    assert total == pytest.approx(expected, rel=1e-9)
+def test_interval_energy_is_the_sum_over_physics_steps():
+    """The energy the flight books per control tick (closed-form per-step thrusts from the
+    rotor states and commands) equals the thrust power of MuJoCo's actuator forces summed over
+    the tick's physics steps, from rotors far from their commands to a hover and a move."""
+    config = PhysicsConfig(power_model="momentum")  # the per-step integral, airspeed-blind
+    flight = Flight.alone(EIGHT, config)
+    flight.reset(0, 3, 4, math.inf, np.random.default_rng(0))
+    flight.state[0, flight.cols[2]] = [3.0, 4.0, 5.0, 6.0]  # the rotors' thrusts
+    ticks = record_ticks(flight, whole=True)
+    assert flight.fly_one(kind.HOVER, 3 * 8 + 4).failure is None
+    assert flight.fly_one(kind.MOVE, 3 * 8 + 5).arrived
+    power, dt, k = flight.energy_of.power, flight.model.opt.timestep, flight.k
+    assert k == 5 and len(ticks) > 200
+    booked = 0.0
+    for state, _, load_j, data in ticks:
+        energy, booked = load_j - booked, load_j
+        assert not np.array_equal(state[flight.ctrl_cols], state[flight.cols[2]])  # in transit
+        total = 0.0
+        for _ in range(k):
+            mujoco.mj_step(flight.model, data)
+            total += power.power(data.actuator_force.tolist()) * dt
+        assert total == pytest.approx(energy, rel=1e-9)
 
 
 def test_hover_power_is_momentum_theory(params):
@@ -220,14 +286,29 @@ def test_hover_power_is_momentum_theory(params):
     )
 
 
-def test_wind_direction_and_gust_statistics():
-    north = Wind(PhysicsConfig(wind_speed=5.0, wind_direction=0.0), 0.02)
-    assert north.steady == pytest.approx((0.0, -5.0, 0.0))  # from the north, blowing south
-    fx, fy, _ = QuadraticDrag(1.225, 0.1).force((0.0, 2.0, 0.0), north.steady)  # flying into it
-    assert fx == pytest.approx(0.0) and fy < 0.0
+def test_wind_direction_drag_and_gust_statistics():
+    flight = Flight.alone(EIGHT, PhysicsConfig(wind_speed=5.0, wind_direction=0.0))
+    flight.reset(0, 3, 4, math.inf, np.random.default_rng(0))
+    assert flight.weather.steady[0] == pytest.approx((0.0, -5.0, 0.0))  # from the north
+    v = flight.cols[1].start
+    flight.state[0, v : v + 3] = (0.0, 2.0, 0.0)  # flying into it
+    ticks = record_ticks(flight)
+    flight.fly_one(kind.HOVER, 3 * 8 + 4)
+    state, wind, *_ = ticks[0]
+    assert wind == pytest.approx((0.0, -5.0, 0.0))
+    fx, fy, fz = state[flight.force_cols]
+    assert fx == pytest.approx(0.0) and fz == pytest.approx(0.0) and fy < 0.0
+    assert fy == pytest.approx(-flight.half_rho_cda * 7.0**2)  # ½ρC_dA·|v_rel|·v_rel
+    for state, wind, *_ in ticks:  # the drag of every tick, from the air the drone flew in
+        rel = wind - state[flight.cols[1]][:3]
+        drag = flight.half_rho_cda * np.linalg.norm(rel) * rel
+        assert state[flight.force_cols] == pytest.approx(drag, rel=1e-12, abs=1e-15)
     gusty = Wind(PhysicsConfig(gust_std=2.0, gust_tau=1.0), 0.02)
-    gusty.reset(np.random.default_rng(0))
-    samples = np.array([gusty.velocity()[:2] for _ in range(50_000)])
+    gusty.reset(0, np.random.default_rng(0))
+    drone, where = np.zeros(1, dtype=np.int64), np.zeros((1, 3))
+    samples = np.array(
+        [gusty.velocity(drone, np.array([0.02 * t]), where)[0, :2] for t in range(50_000)]
+    )
     assert samples.std(axis=0) == pytest.approx([2.0, 2.0], rel=0.15)
     assert abs(samples.mean()) < 0.5
 

@@ -238,8 +238,8 @@ def seen_by_hand(pos, mat, rays, centers, half, cos_max_tilt, min_down=0.05):
 
 def test_the_camera_kernel_sees_what_the_rule_says():
     """Random camera poses over an odd map (tilted up to 50°: some past the frame tilt limit,
-    some so low that their footprint holds no cell centre): the compiled frame marks exactly the cells the rule
-    written out by hand sees."""
+    some so low that their footprint holds no cell centre): the compiled frame marks exactly
+    the cells the rule written out by hand sees."""
     grid_map = GridMap.from_ascii(["TTTTTTT", "TLTNTTT", "TTTTTTT", "GGTTTTT"], name="odd")
     config = PhysicsConfig(cell_size=3.0, altitude=4.5)
     model = compile_arena(build_arena(grid_map, config))
@@ -270,3 +270,23 @@ def test_the_camera_kernel_sees_what_the_rule_says():
         assert newly[d] == len(expected & targets)
         kinds.add("tilted" if mat[2, 2] < camera.cos_max_tilt else len(expected) > 0)
     assert {"tilted", True} <= kinds  # frames that see, frames too tilted to be used
+
+
+def test_the_worked_example_of_a_user_wind_flies():
+    """docs/physics.md's gust front, run as written: the move starts ahead of the front in
+    calm air and ends behind it in the westerly, which costs energy a calm move does not."""
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "physics.md").read_text()
+    block = page.split("**A user's wind, worked example**", 1)[1]
+    code = block.split("```python\n", 1)[1].split("```", 1)[0]
+    scope: dict = {}
+    exec(compile(code, "docs/physics.md", "exec"), scope)  # noqa: S102 - the page's own example
+    env, info = scope["env"], scope["info"]
+    flight = env.unwrapped.flight
+    assert info["crash_reason"] is None and not scope["terminated"]
+    assert flight.wind_now[0].tolist() == [10.0, 0.0, 0.0]  # behind the front at the end
+    calm = gym.make("cpp_mujoco/MuJoCo-v0", map="A")
+    calm.reset(seed=0, options={"start": (12, 0), "budget": 40})
+    calm_info = calm.step(1)[4]
+    assert info["energy_used_j"] > 1.05 * calm_info["energy_used_j"]

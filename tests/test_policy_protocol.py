@@ -104,7 +104,7 @@ def test_start_episodes_calls_reset_only_where_there_is_one():
 # ----------------------------------------------------------------------------- chunks, progress
 def test_chunked_grid_protocol_equals_one_batch():
     from cpp_mujoco.agent import load_agent
-    from cpp_mujoco.physics.protocol import one_torch_thread
+    from cpp_mujoco.protocol.physics_engines import one_torch_thread
 
     budgets = range(25, 76, 10)  # 72 episodes: chunks of 7, the last one of 2
     cells = load_map("C").landing.size
@@ -270,7 +270,7 @@ def test_worker_failures_end_the_run_with_the_workers_error():
 
 
 def test_physics_chunks_hold_every_episode_once_longest_first():
-    from cpp_mujoco.physics.protocol import chunk_count, chunks
+    from cpp_mujoco.protocol.physics_engines import chunk_count, chunks
 
     tasks = [(i, (0, i % 36), 25 + i // 36) for i in range(1836)]  # map A's protocol shape
     count = chunk_count(len(tasks))

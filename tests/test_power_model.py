@@ -9,19 +9,15 @@ import numpy as np
 import pytest
 
 import cpp_mujoco  # noqa: F401 - registers the envs
-import cpp_mujoco.physics.flight as flight_module
 from cpp_mujoco.grid.actions import NORTH, SOUTH
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.physics.arena import build_arena, compile_arena
+from cpp_mujoco.physics.action import HOVER, MOVE
 from cpp_mujoco.physics.calibration import _airframe, unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
-from cpp_mujoco.physics.flight import Flight, quat_to_mat
-from cpp_mujoco.physics.power.rotor import (
-    ForwardFlightPower,
-    PowerModel,
-    air_in_body,
-    level_flight_power,
-)
+from cpp_mujoco.physics.flight import Flight
+from cpp_mujoco.physics.power import kernels
+from cpp_mujoco.physics.power.rotor import ForwardFlightPower, PowerModel, level_flight_power
+from cpp_mujoco.physics.tick import control_constants
 
 GRID = GridMap.from_ascii(["GGG", "GGG", "GGG"], name="power")
 RHO = 1.225
@@ -38,8 +34,12 @@ def model(params):
 
 
 def make_flight(**kw) -> Flight:
+    """One drone over the 3×3 grid hovering over its centre (cell 4), forward-flight power
+    unless ``kw`` says otherwise, an unlimited pack."""
     config = PhysicsConfig(**{"power_model": "forward-flight", **kw})
-    return Flight(compile_arena(build_arena(GRID, config)), GRID, config)
+    flight = Flight.alone(GRID, config)
+    flight.reset(0, 1, 1, math.inf, np.random.default_rng(0))
+    return flight
 
 
 def test_still_air_power_equals_the_calibrated_hover(params, model):
@@ -66,7 +66,8 @@ def test_glauert_induced_velocity_solves_its_relation(model):
     )
     # vortex-ring guard: any faster axial descent is taken at −vrs_limit·v_h
     vh = math.sqrt(3.7 * model.inv_2rho_a)
-    assert model.ratio(3.7, 0.0, -5 * vh) == model.ratio(3.7, 0.0, -model.vrs * vh) > 0
+    f = model.constants()
+    assert kernels.ratio(3.7, 0.0, -5 * vh, f) == kernels.ratio(3.7, 0.0, -model.vrs * vh, f) > 0
 
 
 def test_level_flight_power_curve_is_a_bucket(params, model):
@@ -88,9 +89,8 @@ def test_hover_in_wind_costs_less_at_6_and_more_at_11_m_s():
     power = {}
     for wind in (0.0, 6.0, 11.0):
         f = make_flight(wind_speed=wind)
-        f.reset(1, 1)
-        f.hover(4)  # lean into the wind first
-        result = f.hover(4)
+        f.fly_one(HOVER, 4)  # lean into the wind first
+        result = f.fly_one(HOVER, 4)
         assert result.failure is None
         power[wind] = result.energy / result.duration
     assert power[6.0] < 0.95 * power[0.0]
@@ -102,71 +102,79 @@ def test_calm_hover_flight_unchanged_by_the_forward_flight_model():
     energy = {}
     for name in ("momentum", "forward-flight"):
         f = make_flight(power_model=name)
-        f.reset(1, 1)
-        energy[name] = f.hover(4).energy
+        energy[name] = f.fly_one(HOVER, 4).energy
     assert energy["forward-flight"] == pytest.approx(energy["momentum"], rel=0.01)
 
 
 def test_upwind_legs_cost_far_more_than_downwind_legs():
     f = make_flight(wind_speed=12.0)  # from the north
-    f.reset(1, 1)
-    f.hover(4)
-    up = f.move(1)  # north, into the wind
-    f.hover(1)
-    down = f.move(4)
+    f.fly_one(HOVER, 4)
+    up = f.fly_one(MOVE, 1)  # north, into the wind
+    f.fly_one(HOVER, 1)
+    down = f.fly_one(MOVE, 4)
     assert up.arrived and down.arrived
     assert up.energy > 1.3 * down.energy
     calm = make_flight()
-    calm.reset(1, 1)
-    out_and_back = calm.move(1).energy + calm.move(4).energy
+    out_and_back = calm.fly_one(MOVE, 1).energy + calm.fly_one(MOVE, 4).energy
     assert up.energy + down.energy > 1.2 * out_and_back
 
 
-class _Recorded:
-    """The flight's interval energy, recording what each tick returns."""
+def body_air(flight: Flight, data: mujoco.MjData | None = None) -> np.ndarray:
+    """Drone 0's velocity relative to the wind of its last tick, in the body frame: from
+    ``data`` when given, else from its state row."""
+    q, v, _ = flight.cols
+    qpos, qvel = (
+        (data.qpos, data.qvel) if data is not None else (flight.state[0, q], flight.state[0, v])
+    )
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, np.asarray(qpos[3:7], dtype=float))
+    return rotation.reshape(3, 3).T @ (np.asarray(qvel[:3]) - flight.wind_now[0])
 
-    def __init__(self, interval):
-        self.interval, self.forward, self.values = interval, interval.forward, []
 
-    def __call__(self, *args):
-        self.values.append(self.interval(*args))
-        return self.values[-1]
+class PerStep:
+    """Wraps drone 0's physics steps: each control interval's energy from the tick's closed form
+    (the kernel :func:`~cpp_mujoco.physics.power.kernels._energy` on the interval's first
+    state), and on the side the forward-flight power at every physics step's own state (thrust,
+    attitude, velocity) of a copy of the drone stepped by ``mujoco.mj_step``, times the step."""
 
+    def __init__(self, flight: Flight):
+        self.flight, self.batch_step = flight, flight._step
+        energy = flight.energy_of
+        self.model = energy.forward
+        self.c = control_constants(flight.dt, energy=energy)
+        self.ff = self.model.constants()
+        self.side = mujoco.MjData(flight.model)
+        self.ticks, self.steps = [], 0.0
 
-class _PerStep:
-    """``mujoco`` for the flight module, but ``mj_step`` integrates the forward-flight power
-    at every physics step's own state (thrust, attitude, velocity) on the side."""
-
-    def __init__(self, model: ForwardFlightPower, wind):
-        self.model, self.wind, self.energy = model, wind, 0.0
-
-    def __getattr__(self, name):
-        return getattr(mujoco, name)
-
-    def mj_step(self, m, d, nstep=1):
-        for _ in range(nstep):
-            if d.ctrl.any():  # motors on (off after touchdown)
-                R = quat_to_mat(*d.qpos[3:7].tolist())
-                air = air_in_body(d.qvel[:3].tolist(), self.wind, R)
-                self.energy += self.model.power(d.act.tolist(), air) * m.opt.timestep
-            mujoco.mj_step(m, d)
+    def __call__(self, drones: np.ndarray, nstep: int) -> None:
+        f, d = self.flight, self.side
+        if 0 in drones.tolist() and f.motors_on[0]:
+            _, _, a = f.cols
+            act, ctrl = f.state[0, a], f.state[0, f.ctrl_cols]
+            air = body_air(f)
+            e = f.energy_of
+            self.ticks.append(kernels._energy(act, ctrl, *air, self.c, e.decay, self.ff))
+            f.copy_data(0, d)
+            assert np.array_equal(d.ctrl, ctrl)  # the tick's command, held over the interval
+            for _ in range(nstep):
+                power = self.model.power(d.act.tolist(), body_air(f, d))
+                self.steps += power * f.model.opt.timestep
+                mujoco.mj_step(f.model, d)
+        self.batch_step(drones, nstep)
 
 
 @pytest.mark.parametrize("wind", [0.0, 9.0])
-def test_tick_rate_energy_matches_the_per_physics_step_integral(monkeypatch, wind):
+def test_tick_rate_energy_matches_the_per_physics_step_integral(wind):
     f = make_flight(wind_speed=wind)  # from the north: the first move flies into it
-    interval = f.interval_energy
-    f.interval_energy = recorder = _Recorded(interval)
-    loads = recorder.values
-    per_step = _PerStep(interval.forward, PhysicsConfig(wind_speed=wind).wind_vector)
-    monkeypatch.setattr(flight_module, "mujoco", per_step)
-    f.reset(1, 1)
-    f.hover(4)  # settle into the wind, not measured
-    loads.clear()
-    per_step.energy = 0.0
+    f.fly_one(HOVER, 4)  # settle into the wind, not measured
+    f._step = per_step = PerStep(f)
+    load = f.battery.load_j[0]
     for cell in (1, 4):  # north into the wind, then back south
-        assert f.move(cell).arrived
-    assert sum(loads) == pytest.approx(per_step.energy, rel=1e-4)  # measured: ≤ 1e-5
+        assert f.fly_one(MOVE, cell).arrived
+    assert len(per_step.ticks) > 200
+    assert sum(per_step.ticks) == pytest.approx(per_step.steps, rel=1e-4)  # measured: 4e-5 at 9 m/s
+    # the flight's load is the kernel's energy of its ticks, nothing else
+    assert f.battery.load_j[0] - load == pytest.approx(sum(per_step.ticks), rel=1e-12)
 
 
 def test_energy_used_is_the_sum_of_the_ticks():

@@ -157,7 +157,7 @@ def test_the_grid_has_no_ray_engine():
 
 
 def test_without_ray_the_engine_says_how_to_install_it(monkeypatch, tmp_path, capsys):
-    from cpp_mujoco.physics.ray_engine import RayMissingError, import_ray
+    from cpp_mujoco.protocol.ray_engine import RayMissingError, import_ray
 
     monkeypatch.setitem(sys.modules, "ray", None)  # as if the extra were not installed
     with pytest.raises(RayMissingError, match=re.escape("pip install -e .[ray]")):

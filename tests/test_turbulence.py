@@ -59,10 +59,11 @@ def test_the_discretisation_is_exact():
 
 
 def sample(params, dt, airspeed, ticks, seed=0):
+    """``ticks`` gusts at ``airspeed`` from the flight's own filter kernel, and the airspeed
+    its time scales use."""
     turbulence = DrydenTurbulence(params, dt)
-    turbulence.reset(np.random.default_rng(seed))
-    speed = turbulence.effective_airspeed(airspeed)
-    return turbulence.sequence(speed, ticks), speed
+    gusts = turbulence.sequence(airspeed, ticks, np.random.default_rng(seed))
+    return gusts, turbulence.effective_airspeed(airspeed)
 
 
 @pytest.mark.parametrize(
@@ -99,52 +100,87 @@ def test_airspeed_sets_the_time_scale_with_a_floor():
     assert lag1[0] > lag1[1]
 
 
-def winds(config: PhysicsConfig, seed: int, ticks: int = 300, speed: float = 2.0) -> np.ndarray:
-    """The default wind part's output along a straight eastward flight."""
-    wind = Wind(config, config.control_dt)
-    wind.reset(np.random.default_rng(seed))
-    dt = config.control_dt
-    return np.array([wind.velocity(k * dt, (speed * k * dt, 0.0, 6.0)) for k in range(ticks)])
+def winds(config: PhysicsConfig, *seeds: int, ticks: int = 300, speed: float = 2.0) -> np.ndarray:
+    """The default wind part's output (len(seeds), ticks, 3) for a batch of drones, drone i
+    seeded ``seeds[i]``, each flying the same straight eastward line."""
+    m, dt = len(seeds), config.control_dt
+    wind = Wind(config, dt, m)
+    for i, seed in enumerate(seeds):
+        wind.reset(i, np.random.default_rng(seed))
+    drones = np.arange(m)
+    out = [
+        wind.velocity(drones, np.full(m, k * dt), np.tile((speed * k * dt, 0.0, 6.0), (m, 1)))
+        for k in range(ticks)
+    ]
+    return np.stack(out, axis=1)
 
 
 def test_none_is_exactly_the_steady_wind_and_levels_are_seeded():
     calm = PhysicsConfig(wind_speed=4.0, wind_direction=90.0)
     assert Wind(calm, DT).turbulence is None
-    assert np.array_equal(winds(calm, 1), np.tile(calm.wind_vector, (300, 1)))
+    assert np.array_equal(winds(calm, 1)[0], np.tile(calm.wind_vector, (300, 1)))
     moderate = PhysicsConfig(wind_speed=4.0, wind_direction=90.0, turbulence="moderate")
-    first = winds(moderate, 1)
-    assert np.array_equal(first, winds(moderate, 1))  # same seed, same gusts
-    assert not np.allclose(first, winds(moderate, 2))  # another seed, other gusts
+    first, again, other = winds(moderate, 1, 1, 2)
+    assert np.array_equal(first, again)  # same seed, same gusts
+    assert not np.allclose(first, other)  # another seed, other gusts
+    assert np.array_equal(first, winds(moderate, 1)[0])  # in a batch as alone
     assert np.all(first.std(axis=0) > 0.01)  # all three components move
     # OU gusts stay available and combine with turbulence, still seeded
     both = PhysicsConfig(gust_std=1.0, turbulence="light")
-    assert np.array_equal(winds(both, 3), winds(both, 3))
+    first, again, other = winds(both, 3, 3, 4)
+    assert np.array_equal(first, again) and not np.allclose(first, other)
+    assert np.array_equal(first, winds(both, 3)[0])
 
 
-class FixedGust:
-    """A turbulence stand-in: records the airspeeds, returns a unit u gust."""
-
-    def __init__(self):
-        self.airspeeds = []
-
-    def reset(self, rng):
-        pass
-
-    def step(self, airspeed):
-        self.airspeeds.append(airspeed)
-        return 1.0, 0.0, 0.0
+def test_the_sampled_gusts_are_the_winds_turbulence():
+    """A drone holding still in a steady wind meets the air at the wind's speed every tick: its
+    turbulence is :meth:`DrydenTurbulence.sequence` (the sample of the statistics above) from
+    the same seed, normal for normal, across blocks of normals."""
+    config = PhysicsConfig(wind_speed=4.0, wind_direction=90.0, turbulence="moderate")
+    wind = Wind(config, DT)
+    wind.reset(0, np.random.default_rng(5))
+    ticks, still = 2500, np.array([[1.0, 2.0, 6.0]])
+    out = np.array(
+        [wind.velocity(np.array([0]), np.array([k * DT]), still)[0] for k in range(ticks)]
+    )
+    u, v, w = wind.turbulence.sequence(4.0, ticks, np.random.default_rng(5)).T
+    (sx, sy, sz), (cx, cy) = config.wind_vector, wind.axis[0]
+    expected = np.stack([sx + u * cx - v * cy, sy + u * cy + v * cx, sz + w], axis=1)
+    assert out == pytest.approx(expected, abs=1e-12)
 
 
 def test_u_lies_along_the_steady_wind_and_airspeed_is_relative():
+    """Only the u filter is set (to 1) and no noise is drawn: each tick's gust is that filter's
+    decay, e^(−V·dt/L_u), at the airspeed V the tick took, read back from the output."""
     config = PhysicsConfig(wind_speed=3.0, wind_direction=90.0, turbulence="light")  # from east
-    wind = Wind(config, DT)
-    wind.turbulence = stub = FixedGust()
-    wind.reset(np.random.default_rng(0))
+    wind = Wind(config, DT, 2)
+    for i in range(2):
+        wind.reset(i, np.random.default_rng(i))
+    wind.state[:] = (1.0, 0.0, 0.0, 0.0, 0.0)
+    wind.turb_noise.block[:] = 0.0
+    turbulence, drones = wind.turbulence, np.arange(2)
+    sigma_u, length_u = turbulence.params.sigma_u, turbulence.params.length_u
     sx, sy, sz = config.wind_vector  # (-3, 0, 0): blowing west
-    out = [wind.velocity(k * DT, (2.0 * k * DT, 0.0, 6.0)) for k in range(5)]  # east at 2 m/s
-    assert out[0] == pytest.approx((sx - 1.0, sy, sz), abs=1e-12)  # +1 m/s along the wind
-    assert stub.airspeeds[0] == pytest.approx(3.0)  # first call: no velocity yet
-    assert stub.airspeeds[1:] == pytest.approx([5.0] * 4)  # |(-3) - 2|: headwind adds up
+    # drone 0 flies east at 2 m/s, drone 1 drifts west with the wind
+    east, west = np.array([2.0, 0.0, 0.0]), np.array([-3.0, 0.0, 0.0])
+    height = np.array([0.0, 0.0, 6.0])
+    out = np.array(
+        [
+            wind.velocity(drones, np.full(2, k * DT), np.stack([east, west]) * k * DT + height)
+            for k in range(5)
+        ]
+    )
+    decay = turbulence.coefficients(turbulence.effective_airspeed(3.0))[0]
+    assert out[0, 0] == pytest.approx((sx - sigma_u * decay, sy, sz), abs=1e-12)  # along the wind
+    assert out[..., 1] == pytest.approx(np.full((5, 2), sy), abs=1e-12)  # nothing across …
+    assert np.all(out[..., 2] == sz)  # … nor vertical
+    gust = (sx - out[..., 0]) / sigma_u  # u, positive along the wind (westward)
+    airspeed = -np.log(gust / np.vstack([np.ones(2), gust[:-1]])) * length_u / DT
+    effective = turbulence.effective_airspeed
+    # first tick: no velocity yet, the steady wind's speed
+    assert airspeed[0] == pytest.approx([effective(3.0)] * 2, rel=1e-9)
+    assert airspeed[1:, 0] == pytest.approx([effective(5.0)] * 4, rel=1e-9)  # |(-3) - 2|: adds up
+    assert airspeed[1:, 1] == pytest.approx([tb.MIN_AIRSPEED] * 4, rel=1e-9)  # still air: the floor
 
 
 @pytest.mark.parametrize("value", ["strong", "Moderate", 3, None])

@@ -1,6 +1,6 @@
 """What a batch of drones is flying: the kinds of macro-action, per drone the action's running
-state (what :meth:`Flight._fly` keeps in locals), and the failed state checks of a tick — shared
-by the flight (:mod:`~.batched_flight`) and its compiled tick (:mod:`~cpp_mujoco.physics.tick`)."""
+state, and the failed state checks of a tick — shared by the flight
+(:mod:`~cpp_mujoco.physics.flight`) and its tick (:mod:`~cpp_mujoco.physics.tick`)."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ FAILURES = ("numerical divergence (NaN or unstable acceleration)", "left the are
 
 @dataclass
 class MacroActions:
-    """Per drone, the macro-action being flown (what :meth:`Flight._fly` keeps in locals)."""
+    """Per drone, the macro-action being flown: its clock, goal, limits, and how it ends."""
 
     res: dict  # the result fields, (n,) arrays
     flying: np.ndarray  # still in the action
