@@ -40,7 +40,7 @@ def _twins(n: int, **kwargs) -> list[MuJoCoVectorEnv]:
 def test_the_quadrotor_reaches_its_skid_tips_and_the_ground_is_the_plane():
     env = MuJoCoVectorEnv(1, MAP)
     model, flight = env.model, env.flight
-    frame = int(model.body_parentid[flight.one.params.body_id])
+    frame = int(model.body_parentid[flight.params.body_id])
     # the skids: capsules of radius 8 mm, 0.2 m long, centred (0, ±0.11, −0.17) from the origin;
     # their bounding spheres reach past the tips, which are what can touch
     reach = reach_below(model, frame)
