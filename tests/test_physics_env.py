@@ -6,8 +6,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import cpp_mujoco  # noqa: F401 - registers the envs
-from cpp_mujoco.maps import GridMap
 from cpp_mujoco.bench.physics import benchmark_physics
+from cpp_mujoco.maps import GridMap
 
 SMALL = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="small")
 OPEN3 = GridMap.from_ascii(["TTT", "TLT", "TTT"], name="open")
