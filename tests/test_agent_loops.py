@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cpp_mujoco.evaluate import protocol_budgets
+
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "agent_loops.py"
 spec = importlib.util.spec_from_file_location("agent_loops", SCRIPT)
 agent_loops = importlib.util.module_from_spec(spec)
@@ -22,10 +24,18 @@ def test_the_longest_cycle_run():
     assert run(np.array([3, -1])) == 0
 
 
-def test_the_report_names_its_set_policy_and_counts(capsys):
+def test_the_report_names_its_set_policy_and_counts(capsys, monkeypatch):
+    # the report is under test, not the agent: it flies every 10th budget of the size class
+    evaluate, flown = agent_loops.evaluate, []
+
+    def some_budgets(agent, grid_map, config):
+        flown.append(evaluate(agent, grid_map, config=config, budgets=protocol_budgets(config, 10)))
+        return flown[-1]
+
+    monkeypatch.setattr(agent_loops, "evaluate", some_budgets)
     assert agent_loops.main(["--map-set", "heldout16-v1", "--first", "1", "--agent", "A"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["map_set"]["name"] == "heldout16-v1" and report["map_set"]["evaluated"] == 1
     assert report["policy"] == "ddqn-A" and report["digest"]
-    assert 0 <= report["cycling_episodes"] <= report["episodes"] > 0
+    assert 0 <= report["cycling_episodes"] <= report["episodes"] == flown[0].landed.size > 0
     assert report["worst_maps"][0]["map"] == "gen16-s1000000"

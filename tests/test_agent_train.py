@@ -23,7 +23,7 @@ class UniformRandom:
 
 def test_smoke_training_beats_random(tmp_path):
     cfg = TrainConfig(
-        map="A", min_budget=8, max_budget=16, num_envs=16, total_updates=150,
+        map="A", min_budget=8, max_budget=16, num_envs=16, total_updates=60,
         learning_starts=500, batch_size=64, learning_rate=1e-3, lr_warmup_updates=20,
         eval_every=10**9, checkpoint_every=10**9, final_eval=False, threads=1, guide_fraction=0.0,
         demo_fraction=0.0,  # pure temporal-difference learning from the agent's own experience
@@ -206,6 +206,7 @@ def test_a_first_stage_stops_at_its_update_on_the_whole_runs_schedule(tmp_path):
         map="C", num_envs=8, batch_size=16, learning_starts=100, lr_warmup_updates=0,
         eval_every=10**9, checkpoint_every=10**9, final_eval=False, threads=1, demo_fraction=0.0,
         guide_updates=40,
+        eval_budget_step=10**9,  # each stage's closing evaluation: the least and most budget only
     )  # fmt: skip
     first = Trainer(TrainConfig(total_updates=40, stop_after_updates=10, **base), tmp_path)
     first.run(progress=False)

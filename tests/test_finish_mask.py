@@ -18,6 +18,12 @@ from tests.hand_observations import hand_observation
 ALL = np.ones((1, 5), dtype=bool)
 
 
+@pytest.fixture(autouse=True)
+def _one_thread(one_thread):
+    """Batches of a few episodes gain nothing from a second torch thread, and on a shared
+    2-core machine it slows them down: one thread."""
+
+
 def _obs(landing=((2, 2),), **kwargs):
     return hand_observation(landing=landing, **kwargs)
 
@@ -52,7 +58,7 @@ def test_it_is_the_safe_greedy_planners_landing_test():
     """On a landing cell the planner lands exactly where the mask sees no target in reach."""
     pool = MapPool.generate((16,), 3, 2_000_100)
     rng = np.random.default_rng(0)
-    planner, checked = SafeGreedyPlanner(), 0
+    planner, checked, per_map = SafeGreedyPlanner(), 0, []
     for grid_map in pool.maps:
         cells = np.flatnonzero(grid_map.landing.reshape(-1))
         n = 200
@@ -72,8 +78,13 @@ def test_it_is_the_safe_greedy_planners_landing_test():
         # per-row maps (a batch of several maps) decide the same
         per_row = {**obs, "map": np.repeat(obs["map"][None], n, axis=0)}
         np.testing.assert_array_equal(targets_in_reach(per_row), in_reach)
+        per_map.append((per_row, in_reach))
         checked += n
     assert checked == 600
+    # rows of different maps in one batch: each row is decided on its own map
+    mixed = {k: np.concatenate([obs[k] for obs, _ in per_map]) for k in per_map[0][0]}
+    expected = np.concatenate([in_reach for _, in_reach in per_map])
+    np.testing.assert_array_equal(targets_in_reach(mixed), expected)
 
 
 @pytest.fixture(scope="module")

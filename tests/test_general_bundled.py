@@ -53,12 +53,13 @@ def test_it_loads_by_name_and_acts_on_both_sizes(agent):
 
 @pytest.mark.parametrize("size", [16, 32])
 def test_it_flies_an_unseen_map_home_and_covers(agent, size):
-    """The first map of each held-out set, every 10th budget of its size class: every episode
-    lands, and it covers far more than the random policy and at least 70 % of what the safe
-    greedy planner covers (measured: 16×16 89.6 % against 91.1 %; 32×32 52.8 % against
-    51.3 %)."""
+    """The first map of each held-out set, six budgets spanning its size class's range (every
+    10th of 16×16's, every 20th of 32×32's): every episode lands, and it covers far more than
+    the random policy and at least 70 % of what the safe greedy planner covers (measured:
+    16×16 90.0 % against 91.1 %; 32×32 52.8 % against 51.4 %)."""
     grid_map, config = load_map_set(f"heldout{size}-v1", first=1)[0], size_config(size)
-    budgets = protocol_budgets(config, 10)
+    budgets = protocol_budgets(config, {16: 10, 32: 20}[size])
+    assert len(budgets) == 6
     ours = evaluate(agent, grid_map, budgets=budgets, config=config)
     rand = evaluate(make_planner("random"), grid_map, budgets=budgets, config=config)
     greedy = evaluate(make_planner("safe-greedy"), grid_map, budgets=budgets, config=config)

@@ -251,9 +251,10 @@ def test_demonstrations_keep_every_step_of_episodes_longer_than_the_budget():
 
 
 def test_demonstrations_fly_only_maps_up_to_demo_max_side(tmp_path):
+    # which maps are flown is under test: the demonstrations fly two budgets of each (25, 75)
     config = GeneralTrainConfig(total_updates=1, **{**TINY, "sizes": (16, 32),
                                 "demo_max_side": 16, "named_maps": ("A",),
-                                "named_share": 0.2})  # fmt: skip
+                                "named_share": 0.2, "demo_budget_step": 50})  # fmt: skip
     trainer = GeneralTrainer(config, tmp_path)
     flown = {int(m) for m in np.unique(trainer.demos.map_index)}
     assert flown == {0, 6}  # the first generated 16×16 map and the named A; not map 3, 32×32
@@ -265,7 +266,7 @@ def test_demonstrations_fly_only_maps_up_to_demo_max_side(tmp_path):
 def test_a_map_set_flies_in_the_grid_wind_and_its_file_says_so(tmp_path, capsys):
     from cpp_mujoco.cli import main
 
-    argv = ["evaluate", "--map-set", "heldout16-v1", "--first", "1", "--budget-step", "25",
+    argv = ["evaluate", "--map-set", "heldout16-v1", "--first", "1", "--budget-step", "50",
             "--planner", "safe-greedy", "safe-greedy-wind", "--out", str(tmp_path),
             "--no-progress"]  # fmt: skip
     assert main([*argv, "--grid-wind", "12"]) == 0

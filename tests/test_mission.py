@@ -25,7 +25,8 @@ def small_map(tmp_path) -> Path:
 
 def test_fly_writes_a_verified_recording_and_decodable_videos(tmp_path, small_map, capsys):
     rrd, video, onboard = tmp_path / "m.rrd", tmp_path / "chase.mp4", tmp_path / "onboard.mp4"
-    code = main(["fly", "--map", str(small_map), "--planner", "safe-greedy", "--budget", "8",
+    # budget 4: a move out, one back and the landing, every frame rendered by both cameras
+    code = main(["fly", "--map", str(small_map), "--planner", "safe-greedy", "--budget", "4",
                  "--start", "0,1", "--rrd", str(rrd), "--video", str(video),
                  "--onboard-video", str(onboard)])  # fmt: skip
     assert code == 0

@@ -152,7 +152,7 @@ def test_in_calm_air_the_guard_costs_the_bundled_agent_almost_nothing():
             "B",
             backend="mujoco",
             budgets=[30, 45],
-            workers=2,
+            workers=1,  # in this process, all episodes in one batch: no workers to spawn
             env_kwargs={"return_guard": guard},
         )  # fmt: skip
         for guard in (False, True)

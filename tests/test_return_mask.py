@@ -165,7 +165,7 @@ def test_a_masked_policy_lands_every_episode_even_untrained(size):
     torch.manual_seed(0)
     net = GeneralQNetwork(max_side=32, home_input=True, **SMALL_NET)
     grid_map, config = generate_from_seed(2_000_017, size), size_config(size)
-    budgets = protocol_budgets(config, 10)
+    budgets = protocol_budgets(config, {16: 10, 32: 20}[size])  # six spanning the size class
     free = evaluate(GreedyAgent(net, 150.0), grid_map, budgets=budgets, config=config)
     masked = evaluate(
         GreedyAgent(net, 150.0, return_mask=True), grid_map, budgets=budgets, config=config

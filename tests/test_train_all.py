@@ -71,6 +71,10 @@ def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
         return 0
 
     monkeypatch.setattr(module, "_train", fake_train)
+    # what is under test is which runs start from what; the summary's evaluation of the kept
+    # agent still runs, on the least and most budget instead of the whole range
+    evaluate = module.evaluate
+    monkeypatch.setattr(module, "evaluate", lambda agent, m: evaluate(agent, m, budgets=[25, 75]))
     assert module.main(["--wind", "--out", str(tmp_path), "--maps", "B"]) == 0
     first, second, physics = calls
 
@@ -93,6 +97,7 @@ def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
     assert opt(physics, "--physics-calm-share") == "0.5"
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["B"]["agent"] == str(tmp_path / "B-physics" / "agent.pt")
+    assert summary["B"]["landing_ratio"] > 0.9  # the agent.pt it kept was evaluated
     calls.clear()  # run again: the finished runs are kept, the last one is resumed
     assert module.main(["--wind", "--out", str(tmp_path), "--maps", "B"]) == 0
     assert len(calls) == 1 and "--resume" in calls[0] and str(tmp_path / "B-physics") in calls[0]

@@ -44,8 +44,12 @@ def targets_in_reach(obs: dict[str, np.ndarray], fov_side: int = GridConfig.fov_
     layers = np.asarray(obs["map"])
     pos, budget, coverage = decode_observation(obs)
     out = np.zeros(pos.size, dtype=bool)
-    if layers.ndim == 4:
-        flat = layers.reshape(layers.shape[0], -1)
+    flat = layers.reshape(layers.shape[0], -1) if layers.ndim == 4 else None
+    if flat is not None and flat.size and (flat == flat[:1]).all():
+        # one map in every row (a protocol's batch): np.unique's row sort would cost more than
+        # the whole decision
+        groups = [(layers[0], np.arange(pos.size))]
+    elif flat is not None:
         _, first, which = np.unique(flat, axis=0, return_index=True, return_inverse=True)
         groups = [(layers[f], np.flatnonzero(which.reshape(-1) == k)) for k, f in enumerate(first)]
     else:
