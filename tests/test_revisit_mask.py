@@ -19,6 +19,12 @@ from tests.hand_observations import hand_observation
 ALL = np.ones((1, 5), dtype=bool)
 
 
+@pytest.fixture(autouse=True)
+def _one_thread(one_thread):
+    """Batches of a few episodes gain nothing from a second torch thread, and on a shared
+    2-core machine it slows them down: one thread."""
+
+
 _obs = hand_observation
 
 
