@@ -87,6 +87,7 @@ class GeometricController:
         self.last_vel = np.zeros((n, 3))
         self.last_force = np.zeros((n, 3))
         self.has_last = np.zeros(n, dtype=bool)
+        self._constants: tuple | None = None  # (dt, the kernels' constants) of __call__
 
     def hover_thrust(self) -> float:
         """Per-rotor thrust that holds the weight: what an episode starts with."""
@@ -116,8 +117,10 @@ class GeometricController:
         out = np.empty((m, 4))
         rows = [np.ascontiguousarray(x, dtype=float).reshape(m, -1)
                 for x in (pos, vel, R, omega, thrust, ref)]  # fmt: skip
+        if self._constants is None or self._constants[0] != dt:  # built once per interval
+            self._constants = (dt, control_constants(dt, controller=self))
         kernels.thrusts(
-            np.asarray(drones, dtype=np.int64), *rows, control_constants(dt, controller=self),
+            np.asarray(drones, dtype=np.int64), *rows, self._constants[1],
             self.A_inv, self.integral, self.disturbance, self.last_vel, self.last_force,
             self.has_last, out,
         )  # fmt: skip
