@@ -2,7 +2,7 @@
 
 Importing it only registers the gymnasium envs: no environment variables, no MuJoCo, no GL.
 The offscreen GL backend is chosen when something first renders
-(:func:`cpp_mujoco.review.rendering.select_gl`).
+(:func:`cpp_mujoco.physics.view.rendering.select_gl`).
 """
 
 from gymnasium.envs.registration import register, registry

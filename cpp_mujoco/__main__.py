@@ -2,7 +2,7 @@
 
 import sys
 
-from cpp_mujoco.cli import main
+from cpp_mujoco.cli.main import main
 
 if __name__ == "__main__":
     sys.exit(main())

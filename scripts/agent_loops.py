@@ -18,9 +18,9 @@ import json
 import numpy as np
 
 from cpp_mujoco.agent import load_agent
-from cpp_mujoco.evaluate import evaluate
-from cpp_mujoco.map_sets import load_map_set, map_set_spec
-from cpp_mujoco.size_classes import size_config
+from cpp_mujoco.map_sets.sets import load_map_set, map_set_spec
+from cpp_mujoco.map_sets.size_classes import size_config
+from cpp_mujoco.protocol.evaluate import evaluate
 
 
 def longest_cycle_run(trajectory: np.ndarray) -> int:

@@ -19,9 +19,9 @@ import numpy as np
 
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.agent.map_pool import VALIDATION_SEEDS, MapPool, check_seeds
-from cpp_mujoco.evaluate import evaluate, protocol_budgets
-from cpp_mujoco.map_commands import agent_entry
+from cpp_mujoco.cli.maps import agent_entry
 from cpp_mujoco.planners import make_planner
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 
 
 def per_budget_coverage(policy, pool: MapPool, budget_step: int) -> dict[int, float]:

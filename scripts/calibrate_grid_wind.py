@@ -13,8 +13,8 @@ import argparse
 import json
 from pathlib import Path
 
-from cpp_mujoco.io import atomic_write_text
 from cpp_mujoco.physics.wind_costs import measure_wind_costs
+from cpp_mujoco.util.io import atomic_write_text
 
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "cpp_mujoco" / "grid" / "wind_costs.json"
 

@@ -31,12 +31,12 @@ from cpp_mujoco.grid.wind import (
     next_gust,
     wind_costs,
 )
-from cpp_mujoco.io import atomic_path, atomic_write_text
 from cpp_mujoco.physics.action import HOVER, MOVE
 from cpp_mujoco.physics.action_energy import _HEADINGS, _OPEN, _kind
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import Flight
+from cpp_mujoco.util.io import atomic_path, atomic_write_text
 
 SUMS = (1, 2, 4, 8, 12)
 

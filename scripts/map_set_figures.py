@@ -19,13 +19,13 @@ import json
 import sys
 from pathlib import Path
 
-from cpp_mujoco.io import atomic_write_text
 from cpp_mujoco.review.map_set_figures import (
     MapSetFigureOptions,
     load_map_set_result,
     merge_map_set_results,
     write_map_set_figures,
 )
+from cpp_mujoco.util.io import atomic_write_text
 
 
 def main(argv: list[str] | None = None) -> int:

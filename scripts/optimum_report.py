@@ -37,11 +37,11 @@ def policies(name: str) -> list[tuple[str, object]]:
 
 
 def evaluate_all(workers: int, budget_step: int) -> dict:
-    from cpp_mujoco.evaluate import evaluate, protocol_budgets
-    from cpp_mujoco.io import atomic_write_text, json_default
     from cpp_mujoco.maps import load_map
     from cpp_mujoco.planners import make_planner
-    from cpp_mujoco.protocol_optimum import default_folder
+    from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
+    from cpp_mujoco.protocol.optimum import default_folder
+    from cpp_mujoco.util.io import atomic_write_text, json_default
 
     rows, physics = [], []
     for name in MAPS:
@@ -115,8 +115,8 @@ def proven_share(name: str) -> str:
     import numpy as np
 
     from cpp_mujoco.maps import load_map
-    from cpp_mujoco.planners.optimum_cache import OptimumCache
-    from cpp_mujoco.protocol_optimum import default_folder
+    from cpp_mujoco.protocol.optimum import default_folder
+    from cpp_mujoco.protocol.optimum_cache import OptimumCache
 
     entries = OptimumCache(default_folder(), load_map(name)).entries
     proven: dict[str, int] = {}
@@ -169,7 +169,7 @@ def main(argv=None) -> int:
             print(f"{doc} does not hold the table of {RESULT}; run scripts/optimum_report.py")
             return 1
         if wanted != text:
-            from cpp_mujoco.io import atomic_write_text
+            from cpp_mujoco.util.io import atomic_write_text
 
             atomic_write_text(doc, wanted)
     if not args.check:

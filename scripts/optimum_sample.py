@@ -31,7 +31,7 @@ def result_path(name: str) -> Path:
 
 
 def draw(maps, episodes: int, seed: int) -> list[tuple[int, tuple[int, int], int]]:
-    from cpp_mujoco.size_classes import budget_range
+    from cpp_mujoco.map_sets.size_classes import budget_range
 
     rng = np.random.default_rng(seed)
     out = []
@@ -56,14 +56,14 @@ def solve_one(task):
 
 def run(args) -> dict:
     from cpp_mujoco.agent import load_agent
-    from cpp_mujoco.evaluate import evaluate
     from cpp_mujoco.grid.graph import build_graph
-    from cpp_mujoco.io import atomic_write_text
-    from cpp_mujoco.map_sets import load_map_set
+    from cpp_mujoco.map_sets.sets import load_map_set
     from cpp_mujoco.planners import make_planner
     from cpp_mujoco.planners.optimal import trajectory_actions
     from cpp_mujoco.planners.optimal_solver import SolverOptions, solver_version
-    from cpp_mujoco.planners.optimum_cache import OptimumCache
+    from cpp_mujoco.protocol.evaluate import evaluate
+    from cpp_mujoco.protocol.optimum_cache import OptimumCache
+    from cpp_mujoco.util.io import atomic_write_text
 
     maps = load_map_set(args.map_set)
     sample = draw(maps, args.episodes, args.seed)
@@ -85,11 +85,11 @@ def run(args) -> dict:
     caches = {}
     for k, _, _ in sample:
         caches.setdefault(k, OptimumCache(ROOT / "results" / "optimum", maps[k]))
+    solver = solver_version(options.solver)
     todo = [
         (maps[k], s, b, options, hints[j][1]) for j, (k, s, b) in enumerate(sample)
-        if not caches[k].usable(s, b, options)
+        if not caches[k].usable(s, b, solver, options.time_limit_s)
     ]  # fmt: skip
-    solver = solver_version(options.solver)
     with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
         for (grid_map, s, b, *_), mission in zip(todo, pool.imap(solve_one, todo), strict=True):
             k = next(i for i, m in enumerate(maps) if m is grid_map)
@@ -178,14 +178,14 @@ def write_doc(data: dict, check: bool = False) -> int:
     if check:
         return int(wanted != text)
     if wanted != text:
-        from cpp_mujoco.io import atomic_write_text
+        from cpp_mujoco.util.io import atomic_write_text
 
         atomic_write_text(DOC, wanted)
     return 0
 
 
 def main(argv=None) -> int:
-    from cpp_mujoco.optimum_commands import positive_seconds
+    from cpp_mujoco.cli.options import positive_seconds
 
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter

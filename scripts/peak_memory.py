@@ -36,9 +36,9 @@ def run(side: int, budgets: list[int], steps: int = 200) -> dict:
     import gymnasium as gym
 
     import cpp_mujoco  # noqa: F401  (registers the envs)
-    from cpp_mujoco.evaluate import evaluate
     from cpp_mujoco.grid.mdp import GridMDP
     from cpp_mujoco.planners import BeamSearchPlanner, SafeGreedyPlanner
+    from cpp_mujoco.protocol.evaluate import evaluate
 
     start = time.perf_counter()
     grid_map = random_map(side)

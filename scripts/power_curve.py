@@ -17,9 +17,9 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from cpp_mujoco.io import atomic_path, atomic_write_text, json_default
 from cpp_mujoco.physics.calibration import _airframe
 from cpp_mujoco.physics.power.rotor import ForwardFlightPower, PowerModel, level_flight_power
+from cpp_mujoco.util.io import atomic_path, atomic_write_text, json_default
 
 PARTS = (("induced_w", "induced"), ("profile_w", "profile"), ("drag_w", "drag (parasite)"),
          ("avionics_w", "avionics"))  # fmt: skip

@@ -2,7 +2,7 @@
 
 Every bundled agent (on its map) and the safe greedy planner fly every landing cell × budget of
 A, B and C in MuJoCo at ``RATED_WIND`` (9 m/s steady + moderate Dryden turbulence), the wind
-from N, E, S and W with the budgets dealt round-robin to the four (``cpp_mujoco.wind_protocol``):
+from N, E, S and W with the budgets dealt round-robin to the four (``cpp_mujoco.protocol.wind``):
     python scripts/rated_wind.py                    # the full protocol
     python scripts/rated_wind.py --budget-step 5    # quicker
     python scripts/rated_wind.py --guard            # also the paper agents and greedy + guard
@@ -22,19 +22,19 @@ import sys
 from contextlib import nullcontext
 from pathlib import Path
 
-from cpp_mujoco.evaluate import protocol_budgets
 from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.missions.lineup import select_wind_variants
+from cpp_mujoco.protocol.evaluate import protocol_budgets
 from cpp_mujoco.protocol.ray_engine import add_ray_options, ray_option_error, ray_runtime
+from cpp_mujoco.protocol.wind import RATED_WIND, evaluate_in_winds
 from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (
     RATED_COLUMNS,
     Table,
     rated_row,
-    select_wind_variants,
     write_rendered,
     write_tables,
 )
-from cpp_mujoco.wind_protocol import RATED_WIND, evaluate_in_winds
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -18,13 +18,13 @@ from pathlib import Path
 
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.missions.lineup import run_evaluation
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (
     PAPER_COLUMNS,
     Table,
     paper_row,
-    run_evaluation,
     write_rendered,
     write_tables,
 )

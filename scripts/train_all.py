@@ -27,9 +27,9 @@ import time
 from pathlib import Path
 
 from cpp_mujoco.agent import BUNDLED_DIR, load_agent
-from cpp_mujoco.cli import main as train_main  # the `cpp-mujoco` command itself
-from cpp_mujoco.evaluate import evaluate
-from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
+from cpp_mujoco.cli.main import main as train_main  # the `cpp-mujoco` command itself
+from cpp_mujoco.protocol.evaluate import evaluate
+from cpp_mujoco.util.io import atomic_write_bytes, atomic_write_text
 
 # the wind-robust agents' training, two runs per map (docs/agent.md): fine-tune the paper agent
 # in winds of 0..12 m/s (20 % calm), guided by and learning from planners that price moves with

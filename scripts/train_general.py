@@ -36,9 +36,9 @@ from pathlib import Path
 from cpp_mujoco.agent import BUNDLED_DIR, GENERAL_AGENT, GENERAL_WIND_AGENT, load_agent
 from cpp_mujoco.agent.general_eval import validate
 from cpp_mujoco.agent.map_pool import VALIDATION_SEEDS, MapPool
-from cpp_mujoco.cli import main as cli_main
+from cpp_mujoco.cli.main import main as cli_main
 from cpp_mujoco.grid.wind import GridWind  # the `cpp-mujoco` command itself
-from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
+from cpp_mujoco.util.io import atomic_write_bytes, atomic_write_text
 
 BASE_STAGES = [  # (folder, train-general options): stages 1-3, which the calm and wind agents share
     ("stage1", [

@@ -15,24 +15,24 @@ import argparse
 import sys
 from pathlib import Path
 
-from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.missions.lineup import demo_policies
 from cpp_mujoco.physics.action_energy import KINDS, action_energy_table
 from cpp_mujoco.physics.air.turbulence import LEVELS
 from cpp_mujoco.physics.calibration import unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
+from cpp_mujoco.protocol.wind import COMPASS_NAMES
 from cpp_mujoco.review.plots import coverage_figure
 from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (
     TRANSFER_COLUMNS,
     Table,
-    demo_policies,
     file_part,
     transfer_row,
     write_rendered,
     write_tables,
 )
-from cpp_mujoco.wind_protocol import COMPASS_NAMES
 
 WINDS = (0.0, 3.0, 6.0, 9.0, 12.0)
 

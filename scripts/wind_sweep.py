@@ -19,22 +19,22 @@ import sys
 from contextlib import nullcontext
 from pathlib import Path
 
-from cpp_mujoco.evaluate import protocol_budgets, split_conditions
 from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.missions.lineup import select_wind_variants
 from cpp_mujoco.physics.air.turbulence import LEVELS
+from cpp_mujoco.protocol.evaluate import protocol_budgets, split_conditions
 from cpp_mujoco.protocol.ray_engine import add_ray_options, ray_option_error, ray_runtime
+from cpp_mujoco.protocol.wind import evaluate_in_winds
 from cpp_mujoco.review.plots import wind_sweep_figure
 from cpp_mujoco.review.report import script_command, write_report
 from cpp_mujoco.review.results import (
     RATED_COLUMNS,
     Table,
     rated_row,
-    select_wind_variants,
     wind_speed,
     write_rendered,
     write_tables,
 )
-from cpp_mujoco.wind_protocol import evaluate_in_winds
 
 
 def pivot(results, speeds) -> Table:

@@ -26,11 +26,11 @@ import numpy as np
 
 import cpp_mujoco  # noqa: F401  (registers the envs)
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
-from cpp_mujoco.io import atomic_write_bytes, atomic_write_text
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.envs.single import BUDGET_EXHAUSTED
 from cpp_mujoco.physics.flight import EMERGENCY_LANDING
 from cpp_mujoco.physics.power.battery import CUTOFF, OVERLOAD
+from cpp_mujoco.util.io import atomic_write_bytes, atomic_write_text
 
 FOLDER = Path(__file__).parent / "fixtures"
 ENV_ID = "cpp_mujoco/MuJoCo-v0"

@@ -5,11 +5,11 @@ import pytest
 
 from cpp_mujoco.agent import GENERAL_AGENTS, bundled_agents, load_agent
 from cpp_mujoco.agent.network import count_parameters
-from cpp_mujoco.evaluate import PAPER_LANDING_RATIO, evaluate, protocol_budgets
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
+from cpp_mujoco.protocol.evaluate import PAPER_LANDING_RATIO, evaluate, protocol_budgets
 
 NAMES = [n for n in bundled_agents() if not n.endswith("-wind") and n not in GENERAL_AGENTS]
 WIND_NAMES = [n for n in bundled_agents() if n.endswith("-wind") and n not in GENERAL_AGENTS]

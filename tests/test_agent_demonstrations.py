@@ -6,10 +6,10 @@ import numpy as np
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.demonstrations import record_demonstrations
 from cpp_mujoco.agent.train import Trainer
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners import make_planner
+from cpp_mujoco.protocol.evaluate import evaluate
 
 MAP = GridMap.from_ascii(["LL..TT", "L...TT", "..NN..", "TT...."])
 CONFIG = GridConfig(min_budget=6, max_budget=12)

@@ -14,11 +14,11 @@ import pytest
 from cpp_mujoco.agent.checkpoint import TRAIN_KIND, load_checkpoint
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.train import Trainer
-from cpp_mujoco.cli import main
+from cpp_mujoco.cli.main import main
 from cpp_mujoco.maps import GridMap
 
 TINY_MAP = ["LL..TT", "L...T.", "..N...", "T.N..T", "......", "TT...L"]
-RUN = "import sys; from cpp_mujoco.cli import main; sys.exit(main(sys.argv[1:]))"
+RUN = "import sys; from cpp_mujoco.cli.main import main; sys.exit(main(sys.argv[1:]))"
 
 
 @pytest.fixture
@@ -123,7 +123,7 @@ def test_failing_write_keeps_previous_checkpoint(tmp_path, tiny_png, capsys):
     names = sorted(os.listdir(out))
     # a real failing write: the file size limit makes write() fail with EFBIG, as ENOSPC would
     limited = (
-        "import resource, signal, sys; from cpp_mujoco.cli import main; "
+        "import resource, signal, sys; from cpp_mujoco.cli.main import main; "
         "signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
         "resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000)); "
         "sys.exit(main(sys.argv[1:]))"
@@ -149,7 +149,7 @@ def test_failing_write_keeps_previous_checkpoint(tmp_path, tiny_png, capsys):
 
 def test_torch_write_failure_is_named(tmp_path):
     """torch.save into a path reports a failed write as "unexpected pos"; say what it means."""
-    from cpp_mujoco.io import WriteError, atomic_path
+    from cpp_mujoco.util.io import WriteError, atomic_path
 
     torch_words = "[enforce fail at inline_container.cc:672] . unexpected pos 576 vs 534"
     with pytest.raises(WriteError, match=r"write failed \(disk full or file size limit reached\)"):

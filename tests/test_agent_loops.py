@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cpp_mujoco.evaluate import protocol_budgets
+from cpp_mujoco.protocol.evaluate import protocol_budgets
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "agent_loops.py"
 spec = importlib.util.spec_from_file_location("agent_loops", SCRIPT)

@@ -8,7 +8,7 @@ import os
 import pytest
 
 from cpp_mujoco.agent.run_folder import LOCK_NAME
-from cpp_mujoco.cli import main
+from cpp_mujoco.cli.main import main
 from cpp_mujoco.maps import GridMap
 from tests.test_agent_interrupt import TINY_MAP, tiny_args
 

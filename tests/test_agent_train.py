@@ -6,11 +6,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cpp_mujoco.agent.cli import add_train_parser, config_from_args
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.train import Trainer
-from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.cli.train import add_train_parser, config_from_args
 from cpp_mujoco.grid.mdp import GridConfig
+from cpp_mujoco.protocol.evaluate import evaluate
 
 
 class UniformRandom:
@@ -118,8 +118,8 @@ def test_the_wind_planner_margin_option_reaches_guide_and_demonstrator(tmp_path,
 
 
 def test_train_help_states_each_default_once_and_explains_every_option(capsys):
-    from cpp_mujoco.agent.cli import _HELP
-    from cpp_mujoco.cli import main
+    from cpp_mujoco.cli.main import main
+    from cpp_mujoco.cli.train import _HELP
 
     names = [f.name for f in dataclasses.fields(TrainConfig)]
     assert set(_HELP) == set(names)

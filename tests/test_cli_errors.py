@@ -9,7 +9,7 @@ import pytest
 
 from cpp_mujoco import __version__
 from cpp_mujoco.agent import BUNDLED_DIR
-from cpp_mujoco.cli import build_parser, main
+from cpp_mujoco.cli.main import build_parser, main
 from cpp_mujoco.maps import GridMap, load_map
 
 SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
@@ -131,7 +131,7 @@ def test_every_option_has_help_and_states_its_default_at_most_once():
     parser = build_parser()
     commands = parser._subparsers._group_actions[0].choices  # noqa: SLF001
     for name, sub in commands.items():
-        if name == "train":  # its options are generated from TrainConfig in agent/cli.py
+        if name == "train":  # its options are generated from TrainConfig in cli/train.py
             continue
         for action in sub._actions:  # noqa: SLF001
             if action.dest == "help":
@@ -175,21 +175,21 @@ TINY = GridMap.from_ascii(["L.T", "..."], name="tiny")  # one landing cell: one 
 
 
 def test_turbulence_levels_are_the_models():
-    from cpp_mujoco.commands import TURBULENCE_LEVELS
+    from cpp_mujoco.cli.options import TURBULENCE_LEVELS
     from cpp_mujoco.physics.air.turbulence import LEVELS
 
     assert TURBULENCE_LEVELS == LEVELS
 
 
 def test_the_parsers_planner_names_are_the_planners():
-    from cpp_mujoco.commands import PLANNER_NAMES
+    from cpp_mujoco.cli.options import PLANNER_NAMES
     from cpp_mujoco.planners import PLANNERS
 
     assert PLANNER_NAMES == tuple(PLANNERS)
 
 
 def test_evaluate_in_mujoco_records_the_turbulence_it_flew(tmp_path, capsys, monkeypatch):
-    import cpp_mujoco.evaluate as evaluate_module
+    import cpp_mujoco.protocol.evaluate as evaluate_module
 
     # before: no --turbulence option; a run in turbulence could not be asked for from the CLI
     monkeypatch.setattr(evaluate_module, "protocol_budgets", lambda config=None, step=1: [4])
@@ -214,7 +214,7 @@ def test_an_unknown_turbulence_level_is_one_line_and_exit_2(command, capsys):
 
 
 def test_fly_passes_the_turbulence_to_the_env(monkeypatch, capsys):
-    import cpp_mujoco.mission as mission
+    import cpp_mujoco.missions.mission as mission
 
     seen = {}
 

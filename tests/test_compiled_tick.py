@@ -8,7 +8,7 @@ import contextlib
 import numpy as np
 
 from cpp_mujoco.physics import airborne
-from cpp_mujoco.physics.control import kernels as compiled_control
+from cpp_mujoco.physics import tick_kernels as compiled_control
 from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
 from cpp_mujoco.physics.power import kernels as compiled_power
 from cpp_mujoco.physics.power.battery import CUTOFF

@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 import torch
 
-from cpp_mujoco.episode import run_episode
-from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.grid.actions import ACTION_NAMES, NUM_ACTIONS
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.mission import fly_mission
+from cpp_mujoco.missions.mission import fly_mission
 from cpp_mujoco.planners import BeamSearchPlanner, SafeGreedyPlanner
 from cpp_mujoco.planners.rollout import rollout
-from cpp_mujoco.protocol.physics_engines import make_env
+from cpp_mujoco.protocol.episode import run_episode
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
+from cpp_mujoco.protocol.physics_tasks import make_env
 
 TINY = GridMap.from_ascii(["LT.", "..L"], name="tiny")
 SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")

@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from cpp_mujoco.evaluate import coverage_upper_bound, evaluate
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.planners import BeamSearchPlanner, RandomPlanner, SafeGreedyPlanner, make_planner
+from cpp_mujoco.protocol.evaluate import coverage_upper_bound, evaluate
 
 
 @pytest.fixture(scope="module")

@@ -13,8 +13,8 @@ from cpp_mujoco.agent.general_network import GeneralQNetwork, pad_grids
 from cpp_mujoco.agent.general_train import GeneralTrainer, check_general_resumable
 from cpp_mujoco.agent.network import observation_to_tensors
 from cpp_mujoco.grid.mdp import GridMDP
-from cpp_mujoco.map_generator import generate_from_seed
-from cpp_mujoco.size_classes import size_config
+from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.map_sets.size_classes import size_config
 
 SMALL_FCN = dict(conv_filters=8, hidden=32, num_hidden=2)
 
@@ -144,8 +144,8 @@ def test_unknown_or_corrupt_architectures_are_clear_errors(tmp_path):
 
 
 def test_cli_option_selects_the_network():
-    from cpp_mujoco.agent.general_cli import config_from_args, resume_command
-    from cpp_mujoco.cli import build_parser
+    from cpp_mujoco.cli.main import build_parser
+    from cpp_mujoco.cli.train_general import config_from_args, resume_command
 
     parser = build_parser()
     args = parser.parse_args(["train-general", "--out", "x", "--architecture", "fcn"])

@@ -3,9 +3,9 @@ conditions (wind, turbulence, budgets), each axis its unit."""
 
 import pytest
 
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners import SafeGreedyPlanner
+from cpp_mujoco.protocol.evaluate import evaluate
 from cpp_mujoco.review.plots import coverage_plot, trajectories_figure, wind_sweep_plot
 
 SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")

@@ -9,10 +9,10 @@ from cpp_mujoco.agent import load_agent
 from cpp_mujoco.agent.finish_mask import FINISH_RULE, finish_allowed, targets_in_reach
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.map_pool import MapPool
-from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.cli.maps import agent_entry
 from cpp_mujoco.grid.actions import LAND
-from cpp_mujoco.map_commands import agent_entry
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
+from cpp_mujoco.protocol.evaluate import evaluate
 from tests.hand_observations import hand_observation
 
 ALL = np.ones((1, 5), dtype=bool)

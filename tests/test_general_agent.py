@@ -25,10 +25,10 @@ from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay, record_pool_demonstrations
 from cpp_mujoco.agent.network import observation_to_tensors
 from cpp_mujoco.grid.mdp import GridMDP
-from cpp_mujoco.map_generator import generate_from_seed
+from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.map_sets.size_classes import size_config
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
-from cpp_mujoco.size_classes import size_config
 
 SMALL_NET = dict(local_size=9, global_size=11, conv_filters=8, hidden=64, num_hidden=2)
 
@@ -270,13 +270,13 @@ def test_bad_general_checkpoints_are_clear_errors(trained, tmp_path):
 
 
 def test_cli_builds_the_general_config():
-    from cpp_mujoco.cli import build_parser
+    from cpp_mujoco.cli.main import build_parser
 
     args = build_parser().parse_args(
         ["train-general", "--out", "x", "--sizes", "16", "32", "--maps-per-size", "8",
          "--total-updates", "100", "--local-size", "9"]
     )  # fmt: skip
-    from cpp_mujoco.agent.general_cli import config_from_args, resume_command
+    from cpp_mujoco.cli.train_general import config_from_args, resume_command
 
     config = config_from_args(args)
     assert config.sizes == (16, 32) and config.maps_per_size == 8 and config.local_size == 9
@@ -287,7 +287,7 @@ def test_cli_builds_the_general_config():
 
 
 def test_a_general_agent_flies_a_held_out_set(trained, tmp_path, capsys):
-    from cpp_mujoco.cli import main
+    from cpp_mujoco.cli.main import main
 
     out, _ = trained
     argv = ["evaluate", "--map-set", "heldout32-v1", "--first", "1", "--budget-step", "50",

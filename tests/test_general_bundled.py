@@ -11,17 +11,17 @@ import pytest
 
 from cpp_mujoco.agent import GENERAL_AGENT, load_agent
 from cpp_mujoco.agent.checkpoint import RESUMABLE_CHANGES, CheckpointError, load_checkpoint
-from cpp_mujoco.agent.general_cli import config_from_args
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.map_pool import TRAIN_SEEDS, VALIDATION_SEEDS
-from cpp_mujoco.cli import build_parser
-from cpp_mujoco.evaluate import evaluate, protocol_budgets
+from cpp_mujoco.cli.main import build_parser
+from cpp_mujoco.cli.train_general import config_from_args
 from cpp_mujoco.grid.mdp import GridMDP
-from cpp_mujoco.map_sets import heldout_set_of, load_map_set
+from cpp_mujoco.map_sets.sets import heldout_set_of, load_map_set
+from cpp_mujoco.map_sets.size_classes import size_config
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
-from cpp_mujoco.size_classes import size_config
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "train_general.py"
 

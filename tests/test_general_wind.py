@@ -19,16 +19,16 @@ from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.map_pool import MapPool, padded_cell
 from cpp_mujoco.agent.network import observation_to_tensors
 from cpp_mujoco.agent.policy import GreedyAgent
-from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.grid.graph import REJECTED_AFTER, build_graph
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.grid.return_rule import paid_actions, wind_allowance
 from cpp_mujoco.grid.way_home import ReturnMargin, correlation_widening
 from cpp_mujoco.grid.wind import KIND_INDEX, GridWind, wind_costs
-from cpp_mujoco.map_generator import generate_from_seed
+from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.map_sets.size_classes import size_config
 from cpp_mujoco.planners import make_planner
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.review.map_set_figures import merge_map_set_results, run_label
-from cpp_mujoco.size_classes import size_config
 from tests.test_return_mask import SMALL_NET
 from tests.test_return_mask import TINY as MASKED_TINY
 
@@ -264,7 +264,7 @@ def test_demonstrations_fly_only_maps_up_to_demo_max_side(tmp_path):
 
 
 def test_a_map_set_flies_in_the_grid_wind_and_its_file_says_so(tmp_path, capsys):
-    from cpp_mujoco.cli import main
+    from cpp_mujoco.cli.main import main
 
     argv = ["evaluate", "--map-set", "heldout16-v1", "--first", "1", "--budget-step", "50",
             "--planner", "safe-greedy", "safe-greedy-wind", "--out", str(tmp_path),

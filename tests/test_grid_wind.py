@@ -270,7 +270,7 @@ def test_a_wind_network_started_from_a_calm_agent_acts_as_it_in_any_wind():
 def test_bad_wind_training_options_fail_before_the_run_folder_exists(
     tmp_path, capsys, options, message
 ):
-    from cpp_mujoco.cli import main
+    from cpp_mujoco.cli.main import main
 
     out = tmp_path / "run"
     code = main(["train", "--map", "A", "--out", str(out), "--total-updates", "1", *options])

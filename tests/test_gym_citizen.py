@@ -148,7 +148,7 @@ def test_the_first_render_chooses_the_gl_backend(gl):
     result = _python(
         "import os, gymnasium as g, cpp_mujoco\n"
         "from cpp_mujoco.maps import GridMap\n"
-        "from cpp_mujoco.review.rendering import default_gl_backend, loaded_gl_backend\n"
+        "from cpp_mujoco.physics.view.rendering import default_gl_backend, loaded_gl_backend\n"
         "small = GridMap.from_ascii(['LTT', 'TNT', 'TTL'], name='small')\n"
         "env = g.make('cpp_mujoco/MuJoCo-v0', map=small, render_mode='rgb_array')\n"
         "env.reset(seed=0)\n"

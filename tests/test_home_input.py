@@ -21,9 +21,9 @@ from cpp_mujoco.agent.multi_map_replay import MultiMapReplay
 from cpp_mujoco.agent.network import check_can_start_from, observation_to_tensors
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.grid.mdp import GridMDP
-from cpp_mujoco.map_generator import generate_from_seed
+from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.map_sets.size_classes import size_config
 from cpp_mujoco.maps import load_map
-from cpp_mujoco.size_classes import size_config
 
 SMALL_NET = dict(local_size=9, global_size=11, conv_filters=8, hidden=64, num_hidden=2)
 SCALE = 75.0

@@ -11,9 +11,9 @@ import pytest
 from matplotlib.collections import PathCollection
 from PIL import Image
 
-from cpp_mujoco.map_set_eval import evaluate_map_set
-from cpp_mujoco.map_sets import load_map_set, map_set_spec
+from cpp_mujoco.map_sets.sets import load_map_set, map_set_spec
 from cpp_mujoco.planners import make_planner
+from cpp_mujoco.protocol.map_sets import evaluate_map_set
 from cpp_mujoco.review.map_set_figures import (
     MapSetFigureOptions,
     coverage_plot,
@@ -154,12 +154,12 @@ def _probe_set(monkeypatch):
         spec, name="probe16-v1", first_seed=spec.first_seed + 39, count=1,
         digests=spec.digests[39:40],
     )  # fmt: skip
-    monkeypatch.setattr("cpp_mujoco.map_sets._read", lambda: {probe.name: probe})
+    monkeypatch.setattr("cpp_mujoco.map_sets.sets._read", lambda: {probe.name: probe})
     return probe
 
 
 def test_a_map_set_flies_in_mujoco_and_says_so(monkeypatch, tmp_path, capsys):
-    from cpp_mujoco.cli import main
+    from cpp_mujoco.cli.main import main
 
     _probe_set(monkeypatch)
     argv = ["evaluate", "--map-set", "probe16-v1", "--backend", "mujoco", "--planner",
@@ -184,8 +184,8 @@ def test_a_set_the_physics_cannot_build_fails_before_flying(monkeypatch):
     def never(*args, **kwargs):
         raise AssertionError("flew an episode")
 
-    monkeypatch.setattr("cpp_mujoco.protocol.physics_engines.make_env", no_arena)
-    monkeypatch.setattr("cpp_mujoco.map_set_eval.evaluate", never)
+    monkeypatch.setattr("cpp_mujoco.protocol.physics_tasks.make_env", no_arena)
+    monkeypatch.setattr("cpp_mujoco.protocol.map_sets.evaluate", never)
     maps = load_map_set(probe.name)
     planner = [("safe-greedy", make_planner("safe-greedy"))]
     with pytest.raises(ValueError, match=r"'probe16-v1' \(16x16\) cannot be flown in MuJoCo"):

@@ -11,23 +11,21 @@ from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.grid.symmetry import action_permutation, symmetric_q_values, turn_observation
 from cpp_mujoco.grid.wind import action_kind, wind_velocity
-from cpp_mujoco.map_generator import generate_from_seed
-from cpp_mujoco.map_symmetry import (
+from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.maps import GridMap, MapError, load_map
+from cpp_mujoco.maps.symmetry import (
     IDENTITY,
     SYMMETRIES,
     Symmetry,
-    action_permutation,
     map_images,
-    symmetric_q_values,
     symmetries_of,
     turn_cells,
     turn_map,
-    turn_observation,
     turn_wind,
 )
-from cpp_mujoco.maps import GridMap, MapError, load_map
-from cpp_mujoco.policy import policy_identity
+from cpp_mujoco.protocol.policy import policy_identity
 
 
 def test_the_group_has_eight_distinct_elements_and_its_action_maps_are_permutations():
@@ -152,7 +150,7 @@ def test_a_map_name_with_an_image_loads_the_turned_map_and_says_so():
 
 
 def test_evaluate_flies_an_agent_with_symmetric_q_and_names_it(tmp_path, capsys):
-    from cpp_mujoco.cli import main
+    from cpp_mujoco.cli.main import main
 
     args = ["evaluate", "--map", "B~rot90", "--agent", "B", "--budget-step", "25"]
     assert main([*args, "--symmetric-q", "--out", str(tmp_path)]) == 0

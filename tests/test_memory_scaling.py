@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import shortest_path
 
-from cpp_mujoco.evaluate import coverage_upper_bounds, evaluate
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.coverage import (
     mark_fov,
@@ -26,6 +25,7 @@ from cpp_mujoco.grid.graph import UNREACHABLE, DistanceRows, build_graph
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.planners import BeamSearchPlanner, SafeGreedyPlanner, beam_search, safe_greedy
 from cpp_mujoco.planners.rollout import decode_observation
+from cpp_mujoco.protocol.evaluate import coverage_upper_bounds, evaluate
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -7,9 +7,9 @@ from pathlib import Path
 import imageio.v3 as iio
 import pytest
 
-from cpp_mujoco.cli import main
+from cpp_mujoco.cli.main import main
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.mission import fly_mission
+from cpp_mujoco.missions.mission import fly_mission
 from cpp_mujoco.planners import SafeGreedyPlanner
 from tests.test_review import rrd_entities, rrd_print
 
@@ -100,9 +100,9 @@ def test_fly_with_an_agent_for_another_map_size(tmp_path, small_map, capsys):
 def test_no_gl_backend_is_a_clear_message(tmp_path, small_map):
     # a fresh process, so MuJoCo is not imported yet; no backend passes the probe
     script = (
-        "import sys; import cpp_mujoco.review.rendering as r;"
+        "import sys; import cpp_mujoco.physics.view.rendering as r;"
         "r.gl_works = lambda backend, timeout=60.0: False;"
-        "from cpp_mujoco.cli import main;"
+        "from cpp_mujoco.cli.main import main;"
         f"sys.exit(main(['fly', '--map', {str(small_map)!r}, '--planner', 'safe-greedy',"
         f" '--start', '0,1', '--video', {str(tmp_path / 'v.mp4')!r}]))"
     )

@@ -11,12 +11,12 @@ from cpp_mujoco.agent.general_train import GeneralTrainer, training_pool
 from cpp_mujoco.agent.map_pool import NAMED_SEED, MapPool
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import record_pool_demonstrations
-from cpp_mujoco.map_generator import generate_from_seed
-from cpp_mujoco.map_sets import map_set_spec
-from cpp_mujoco.map_symmetry import SYMMETRIES
+from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.map_sets.sets import map_set_spec
 from cpp_mujoco.maps import load_map
+from cpp_mujoco.maps.symmetry import SYMMETRIES
 from cpp_mujoco.planners import make_planner
-from cpp_mujoco.policy import policy_identity
+from cpp_mujoco.protocol.policy import policy_identity
 
 from .test_general_agent import TINY
 
@@ -161,7 +161,7 @@ def test_a_run_trains_on_every_image_of_its_named_map_and_flies_symmetric(tmp_pa
 
 
 def test_the_command_refuses_a_bad_named_map_before_claiming_the_folder(tmp_path, capsys):
-    from cpp_mujoco.cli import main
+    from cpp_mujoco.cli.main import main
 
     out = tmp_path / "run"
     for name, match in [("no-such-map", "no-such-map"), (str(tmp_path), "map")]:

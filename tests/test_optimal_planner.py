@@ -8,8 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cpp_mujoco.cli import main
-from cpp_mujoco.evaluate import evaluate, protocol_episodes
+from cpp_mujoco.cli.main import main
 from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.grid.wind import GridWind
@@ -18,8 +17,9 @@ from cpp_mujoco.planners import make_planner
 from cpp_mujoco.planners.optimal import beam_missions, solve_episodes
 from cpp_mujoco.planners.optimal_model import EpisodeModel, fly
 from cpp_mujoco.planners.optimal_solver import SolverOptions, solve_episode
-from cpp_mujoco.planners.optimum_cache import CacheError, OptimumCache
-from cpp_mujoco.protocol_optimum import default_folder
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_episodes
+from cpp_mujoco.protocol.optimum import default_folder
+from cpp_mujoco.protocol.optimum_cache import CacheError, OptimumCache
 
 # 0 open, L landing, T target, N no-fly, Y target + no-fly (seen only from beside)
 SMALL = [
@@ -171,7 +171,7 @@ def test_beam_missions_land_within_their_budget():
 def test_the_docs_table_is_the_result_files():
     import runpy
 
-    from cpp_mujoco.map_sets import load_map_set
+    from cpp_mujoco.map_sets.sets import load_map_set
 
     script = runpy.run_path(str(Path(__file__).parent.parent / "scripts" / "optimum_report.py"))
     assert script["main"](["--check"]) == 0

@@ -149,8 +149,8 @@ def test_config_validation_names_the_bad_setting(kwargs, message):
 
 
 def test_cli_and_the_general_agent():
-    from cpp_mujoco.agent.cli import FINETUNE_EXAMPLE, add_parser, config_from_args
     from cpp_mujoco.agent.general_config import GeneralTrainConfig
+    from cpp_mujoco.cli.train import FINETUNE_EXAMPLE, add_parser, config_from_args
 
     parser = argparse.ArgumentParser()
     add_parser(parser.add_subparsers())

@@ -17,7 +17,7 @@ from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import Flight
 from cpp_mujoco.physics.power.rotor import PowerModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
-from cpp_mujoco.review.scenery import Scenery
+from cpp_mujoco.physics.view.scenery import Scenery
 
 CONFIG = PhysicsConfig()
 EIGHT = GridMap.from_ascii(["TTTTTTTT"] * 3 + ["TTTTLTTT"] + ["TTTTTTTT"] * 4, name="eight")
@@ -88,7 +88,7 @@ def test_arena_compiles_through_dm_control():
 
 
 def test_the_model_holds_only_the_ground_and_the_quadrotor(model):
-    """Tiles and no-fly volumes are render-time scenery (review/scenery.py), not model geoms:
+    """Tiles and no-fly volumes are render-time scenery (physics/view/scenery.py), not model geoms:
     as geoms they cost ~40 % of every mj_step."""
     quad = mujoco.MjModel.from_xml_path(str(quadrotor_xml()))
     quad_geoms = ["quadrotor/" + quad.geom(i).name for i in range(quad.ngeom)]
@@ -317,7 +317,7 @@ def test_wind_direction_drag_and_gust_statistics():
 def test_a_large_map_builds_and_its_scenery_is_stored_whole(size):
     """MuJoCo takes at most 500 numbers in one custom field: the map is split over several, and
     the renderer's scenery reads back every cell."""
-    from cpp_mujoco.map_generator import generate_from_seed
+    from cpp_mujoco.map_sets.generator import generate_from_seed
 
     grid_map = generate_from_seed(7, 32) if size == 32 else GridMap.from_ascii(
         ["L" + "T" * (size - 2) + "N"] + ["T" * size] * (size - 1), name="odd"

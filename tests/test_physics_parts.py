@@ -20,7 +20,7 @@ from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.physics.parts import Controller, WindModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
 from cpp_mujoco.physics.sensing.camera import CoverageCamera, corner_rays
-from cpp_mujoco.review.scenery import Scenery
+from cpp_mujoco.physics.view.scenery import Scenery
 
 OPEN = GridMap.from_ascii(["TTT", "TLT", "TTT"], name="open3")
 GUSTY = PhysicsConfig(wind_speed=5.0, wind_direction=60.0, gust_std=1.5, turbulence="light")

@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.maps import GridMap, load_map
-from cpp_mujoco.mission import fly_mission
+from cpp_mujoco.missions.mission import fly_mission
 from cpp_mujoco.planners import BeamSearchPlanner, RandomPlanner, SafeGreedyPlanner
 from cpp_mujoco.planners.rollout import rollout
-from cpp_mujoco.policy import start_episodes
+from cpp_mujoco.protocol.evaluate import evaluate
+from cpp_mujoco.protocol.policy import start_episodes
 
 ROOT = Path(__file__).resolve().parents[1]
 PER_EPISODE = ("landed", "coverage", "steps", "returns", "trajectories")
@@ -104,7 +104,7 @@ def test_start_episodes_calls_reset_only_where_there_is_one():
 # ----------------------------------------------------------------------------- chunks, progress
 def test_chunked_grid_protocol_equals_one_batch():
     from cpp_mujoco.agent import load_agent
-    from cpp_mujoco.protocol.physics_engines import one_torch_thread
+    from cpp_mujoco.protocol.physics_tasks import one_torch_thread
 
     budgets = range(25, 76, 10)  # 72 episodes: chunks of 7, the last one of 2
     cells = load_map("C").landing.size
@@ -195,7 +195,7 @@ class UnpicklesBadly(SafeGreedyPlanner):
 
 _FAILURES = """
 import json, time
-from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.protocol.evaluate import evaluate
 from cpp_mujoco.planners import SafeGreedyPlanner
 from tests.test_policy_protocol import FailsInEpisode, UnpicklesBadly, map_c_with_landing_cells
 
@@ -241,7 +241,7 @@ def run_isolated(code: str, timeout: float = 120, script=None) -> str:
 _NO_MAIN_GUARD = """
 import json
 from cpp_mujoco.agent import load_agent
-from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.protocol.evaluate import evaluate
 
 try:  # at import, without `if __name__ == "__main__":` — every spawned worker re-runs this
     evaluate(load_agent("A"), "A", backend="mujoco", budgets=[25], workers=2, progress=False)
@@ -270,7 +270,7 @@ def test_worker_failures_end_the_run_with_the_workers_error():
 
 
 def test_physics_chunks_hold_every_episode_once_longest_first():
-    from cpp_mujoco.protocol.physics_engines import chunk_count, chunks
+    from cpp_mujoco.protocol.physics_tasks import chunk_count, chunks
 
     tasks = [(i, (0, i % 36), 25 + i // 36) for i in range(1836)]  # map A's protocol shape
     count = chunk_count(len(tasks))

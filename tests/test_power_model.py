@@ -15,9 +15,9 @@ from cpp_mujoco.physics.action import HOVER, MOVE
 from cpp_mujoco.physics.calibration import _airframe, unit_energy
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import Flight
+from cpp_mujoco.physics.kernel_constants import control_constants
 from cpp_mujoco.physics.power import kernels
 from cpp_mujoco.physics.power.rotor import ForwardFlightPower, PowerModel, level_flight_power
-from cpp_mujoco.physics.tick import control_constants
 
 GRID = GridMap.from_ascii(["GGG", "GGG", "GGG"], name="power")
 RHO = 1.225

@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cpp_mujoco.cli import main
-from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.cli.main import main
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners import SafeGreedyPlanner
+from cpp_mujoco.protocol.evaluate import evaluate
 from tests.test_policy_protocol import FailsInEpisode, run_isolated
 
 SMALL = GridMap.from_ascii(["L.TT", "..T.", "T..L"], name="small")
@@ -98,7 +98,7 @@ def test_a_task_whose_worker_died_is_retried(ray_runtime, local_result, tmp_path
 
 _OWN_RUNTIME = """
 import json, ray
-from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.protocol.evaluate import evaluate
 from cpp_mujoco.planners import SafeGreedyPlanner
 from tests.test_ray_engine import SMALL
 

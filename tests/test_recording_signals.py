@@ -15,7 +15,7 @@ _FLY = """
 import sys
 import cpp_mujoco.review.recording as recording
 recording.FLUSH_SECONDS = 0.5
-from cpp_mujoco.cli import main
+from cpp_mujoco.cli.main import main
 sys.exit(main(sys.argv[1:]))
 """
 

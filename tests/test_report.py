@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners import SafeGreedyPlanner
+from cpp_mujoco.protocol.evaluate import evaluate
 from cpp_mujoco.review.report import REPORT_NAME, invocation, script_command, write_report
 from cpp_mujoco.review.results import TRANSFER_COLUMNS, Table, write_tables
 
@@ -50,8 +50,8 @@ def folder(tmp_path_factory) -> Path:
     mission's MP4 and recording with the mission's JSON, and a file of another kind."""
     import rerun as rr
 
+    from cpp_mujoco.physics.view.rendering import VideoWriter
     from cpp_mujoco.review.plots import trajectories_figure
-    from cpp_mujoco.review.rendering import VideoWriter
 
     out = tmp_path_factory.mktemp("report")
     write_tables(out / "tables.json", {"transfer": _transfer_table()})

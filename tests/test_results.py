@@ -9,19 +9,19 @@ from pathlib import Path
 
 import pytest
 
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.missions.lineup import run_evaluation
 from cpp_mujoco.planners import SafeGreedyPlanner
+from cpp_mujoco.protocol.evaluate import evaluate
 from cpp_mujoco.review.results import (
     PROTOCOL_COLUMNS,
     Table,
     paper_row,
     protocol_row,
-    run_evaluation,
     split_conditions,
     transfer_row,
 )
-from cpp_mujoco.review.tables import format_table
+from cpp_mujoco.util.tables import format_table
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
@@ -47,15 +47,15 @@ def _imports(path: Path) -> set[str]:
 
 
 @pytest.mark.parametrize(
-    "path", ["scripts/transfer.py", "scripts/results.py", "cpp_mujoco/demo.py"]
+    "path", ["scripts/transfer.py", "scripts/results.py", "cpp_mujoco/missions/demo.py"]
 )
 def test_tables_come_from_the_results_module_only(path):
     # before: transfer.py imported demo's row builder and kept its own Markdown renderer, and
     # results.py and the demo built their rows by hand
     names = _imports(ROOT / path)
     assert "cpp_mujoco.review.results" in names
-    assert not {n for n in names if n.startswith(("cpp_mujoco.demo", "cpp_mujoco.cli"))}
-    assert "cpp_mujoco.review.tables.format_table" not in names  # rendered through Table
+    assert not {n for n in names if n.startswith(("cpp_mujoco.missions.demo", "cpp_mujoco.cli"))}
+    assert "cpp_mujoco.util.tables.format_table" not in names  # rendered through Table
     assert "matplotlib" not in names and "matplotlib.pyplot" not in names
 
 
@@ -125,7 +125,7 @@ def test_evaluation_writes_the_table_with_its_conditions(tmp_path, capsys, resul
 _DRAW = """
 import sys, matplotlib
 matplotlib.use("pdf")
-from cpp_mujoco.evaluate import evaluate
+from cpp_mujoco.protocol.evaluate import evaluate
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners import SafeGreedyPlanner
 from cpp_mujoco.review import plots

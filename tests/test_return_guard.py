@@ -5,12 +5,12 @@ import pytest
 
 import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.agent import load_agent
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.wind import KIND_INDEX, wind_costs
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.return_guard import GuardSettings, ReturnGuard
+from cpp_mujoco.protocol.evaluate import evaluate
 
 STRIP = GridMap.from_ascii(["LTTTTTTT", "TTTTTTTT"], name="strip")
 UNIT = 500.0

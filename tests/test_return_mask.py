@@ -16,16 +16,16 @@ from cpp_mujoco.agent.general_train import GeneralTrainer, initial_general_weigh
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.map_pool import MapPool, padded_cell
 from cpp_mujoco.agent.policy import GreedyAgent
-from cpp_mujoco.episode import run_batch
-from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.grid.actions import LAND, MOVES
 from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.grid.return_rule import RETURN_RULE
-from cpp_mujoco.map_generator import generate_from_seed
+from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.map_sets.size_classes import size_config
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
-from cpp_mujoco.size_classes import size_config
+from cpp_mujoco.protocol.episode import run_batch
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 from tests.test_home_input import _bfs_moves_home
 
 SMALL_NET = dict(local_size=9, global_size=11, conv_filters=8, hidden=64, num_hidden=2)

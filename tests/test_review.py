@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from cpp_mujoco.maps import load_map
+from cpp_mujoco.physics.view.rendering import RenderingError, VideoWriter, configure_gl
 from cpp_mujoco.review.recording import MissionRecorder
-from cpp_mujoco.review.rendering import RenderingError, VideoWriter, configure_gl
 
 RERUN = str(Path(sys.executable).parent / "rerun")
 
@@ -121,8 +121,8 @@ import cpp_mujoco
 from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.maps import load_map
-from cpp_mujoco.review.rendering import OffscreenCamera
-from cpp_mujoco.review.scenery import Scenery
+from cpp_mujoco.physics.view.rendering import OffscreenCamera
+from cpp_mujoco.physics.view.scenery import Scenery
 import mujoco
 model = compile_arena(build_arena(load_map("B"), PhysicsConfig()))
 data = mujoco.MjData(model)
@@ -205,7 +205,7 @@ def test_interrupted_video_is_finalised_as_partial(tmp_path):
 
 @pytest.mark.parametrize("disk_full", [False, True])
 def test_ffmpeg_failure_is_one_line_and_leaves_no_temporary_file(tmp_path, monkeypatch, disk_full):
-    from cpp_mujoco.io import WriteError
+    from cpp_mujoco.util.io import WriteError
 
     path = tmp_path / "v.mp4"
     path.write_bytes(b"previous video")
@@ -233,8 +233,8 @@ def test_figure_on_a_full_disk_is_a_write_error_and_leaves_nothing(tmp_path, mon
 
     from matplotlib.figure import Figure
 
-    from cpp_mujoco.io import WriteError
     from cpp_mujoco.review.plots import map_figure
+    from cpp_mujoco.util.io import WriteError
 
     path = tmp_path / "map.png"
     path.write_bytes(b"previous figure")
@@ -253,7 +253,7 @@ def test_figure_on_a_full_disk_is_a_write_error_and_leaves_nothing(tmp_path, mon
 def test_a_video_without_its_index_is_recognised(tmp_path):
     """ffmpeg's exit status is not checked by imageio: a video cut before its index (full disk
     while finalising) must be caught by looking for the index itself."""
-    from cpp_mujoco.review.rendering import VideoWriter, _has_index
+    from cpp_mujoco.physics.view.rendering import VideoWriter, _has_index
 
     writer = VideoWriter(tmp_path / "v.mp4", fps=10)
     for i in range(5):

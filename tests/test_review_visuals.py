@@ -12,11 +12,11 @@ from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
-from cpp_mujoco.review.chase import ChaseRig, MissionDecor
+from cpp_mujoco.physics.view.airframe import Airframe
+from cpp_mujoco.physics.view.chase import ChaseRig, MissionDecor
+from cpp_mujoco.physics.view.scenery import KERB_HALF_WIDTH, Scenery, landing_kerbs
+from cpp_mujoco.physics.view.trail import Trail
 from cpp_mujoco.review.hud import Hud, HudState, hud_lines, view_up_heading, wind_heading
-from cpp_mujoco.review.quadrotor_visual import Airframe
-from cpp_mujoco.review.scenery import KERB_HALF_WIDTH, Scenery, landing_kerbs
-from cpp_mujoco.review.trail import Trail
 
 SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
 
@@ -225,7 +225,7 @@ def test_covered_cells_turn_lighter_and_nothing_else_changes(gl):
     """A frame late in a mission against the first, seen by the arena's fixed overview camera
     (the chase camera moves): exactly the pixels of cells covered in between changed, lighter."""
     from cpp_mujoco.physics.envs.single import MuJoCoEnv
-    from cpp_mujoco.review.rendering import OffscreenCamera
+    from cpp_mujoco.physics.view.rendering import OffscreenCamera
 
     env = MuJoCoEnv(map="A")
     env.reset(seed=0, options={"start": (13, 0), "budget": 50})
@@ -261,7 +261,7 @@ def test_covered_cells_turn_lighter_and_nothing_else_changes(gl):
 
 def test_the_airframe_is_drawn_large_where_the_uav_is(gl):
     from cpp_mujoco.physics.envs.single import MuJoCoEnv
-    from cpp_mujoco.review.chase import chase_camera
+    from cpp_mujoco.physics.view.chase import chase_camera
 
     env = MuJoCoEnv(map="A")
     env.reset(seed=0, options={"start": (13, 0), "budget": 50})
@@ -317,7 +317,7 @@ def test_rendering_leaves_the_flight_unchanged(gl, tmp_path):
 def test_a_mission_ends_its_video_on_the_outcome(gl, tmp_path):
     import imageio.v3 as iio
 
-    from cpp_mujoco.mission import fly_mission
+    from cpp_mujoco.missions.mission import fly_mission
     from cpp_mujoco.review.flight_review import HOLD_S, outcome_status
 
     frames = []

@@ -7,12 +7,12 @@ import pytest
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.revisit_mask import REVISIT_RULE, RevisitMemory
-from cpp_mujoco.episode import run_episode
-from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.grid.actions import WEST
 from cpp_mujoco.grid.env import GridEnv
-from cpp_mujoco.map_sets import load_map_set
-from cpp_mujoco.size_classes import size_config
+from cpp_mujoco.map_sets.sets import load_map_set
+from cpp_mujoco.map_sets.size_classes import size_config
+from cpp_mujoco.protocol.episode import run_episode
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 from scripts.agent_loops import longest_cycle_run
 from tests.hand_observations import hand_observation
 

@@ -9,10 +9,10 @@ import pytest
 
 import cpp_mujoco  # noqa: F401 - registers the envs
 from cpp_mujoco.agent import load_agent
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.maps import GridMap, load_map
-from cpp_mujoco.policy import SB3Policy, as_policy
+from cpp_mujoco.protocol.evaluate import evaluate
+from cpp_mujoco.protocol.policy import SB3Policy, as_policy
 
 pytest.importorskip("stable_baselines3")
 from stable_baselines3 import DQN  # noqa: E402

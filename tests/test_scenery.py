@@ -9,7 +9,7 @@ from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
-from cpp_mujoco.review.scenery import (
+from cpp_mujoco.physics.view.scenery import (
     NFZ_VOLUME_RGBA,
     TILE_GAP,
     ZONE_RGBA,
@@ -88,7 +88,7 @@ def test_decorate_appends_after_the_model_geoms(model):
 
 
 def test_frames_show_the_tiles_and_the_chase_camera_draws_them_by_default(gl):
-    from cpp_mujoco.review.rendering import OffscreenCamera, chase_camera
+    from cpp_mujoco.physics.view.rendering import OffscreenCamera, chase_camera
 
     grid_map, config = load_map("A"), PhysicsConfig()
     model = compile_arena(build_arena(grid_map, config))

@@ -17,12 +17,12 @@ from cpp_mujoco.agent.target_input import (
     moves_to_unseen,
     widen_for_target_input,
 )
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import graph_from_observation
 from cpp_mujoco.grid.mdp import GridMDP
-from cpp_mujoco.map_generator import generate_from_seed
-from cpp_mujoco.size_classes import size_config
+from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.map_sets.size_classes import size_config
+from cpp_mujoco.protocol.evaluate import evaluate
 
 from .test_general_agent import SMALL_NET, TINY
 

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners import SafeGreedyPlanner
+from cpp_mujoco.protocol.evaluate import evaluate
 
 SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
 

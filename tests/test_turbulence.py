@@ -10,7 +10,6 @@ from scipy.linalg import expm
 from scipy.special import gammainc
 
 import cpp_mujoco  # noqa: F401 - registers the envs
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.air import turbulence as tb
 from cpp_mujoco.physics.air.turbulence import DrydenParams, DrydenTurbulence, correlation, measure
@@ -18,6 +17,7 @@ from cpp_mujoco.physics.air.wind import Wind
 from cpp_mujoco.physics.calibration import calibrate
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
+from cpp_mujoco.protocol.evaluate import evaluate
 
 TINY = GridMap.from_ascii(["LTT", "TNT", "TTL"], name="tiny")
 DT = PhysicsConfig().control_dt  # 0.02 s

@@ -5,7 +5,6 @@ import pytest
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from cpp_mujoco.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
@@ -15,6 +14,7 @@ from cpp_mujoco.grid.wind import GridWind, wind_velocity
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.return_guard import GuardSettings
 from cpp_mujoco.planners import BeamSearchPlanner, WindDemonstrator, make_planner
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 
 ROOM = GridMap.from_ascii(
     ["LL..TT", "L.NN.T", "..N..T", "T...NN", "TT...T"], name="room"

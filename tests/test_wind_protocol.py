@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 
 from cpp_mujoco.agent import load_agent
-from cpp_mujoco.evaluate import evaluate
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.planners import RandomPlanner, SafeGreedyPlanner
+from cpp_mujoco.protocol.evaluate import evaluate
+from cpp_mujoco.protocol.wind import COMPASS, RATED_WIND, concatenate, evaluate_in_winds
 from cpp_mujoco.review.results import rated_row, weather
-from cpp_mujoco.wind_protocol import COMPASS, RATED_WIND, concatenate, evaluate_in_winds
 
 SMALL = GridMap.from_ascii(["LL.TT", "LL.TT", "....."], name="small")
 

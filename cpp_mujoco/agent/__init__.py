@@ -18,7 +18,7 @@ from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import QNetwork
 from cpp_mujoco.agent.policy import GreedyAgent, MapSizeError
 from cpp_mujoco.grid.way_home import ReturnMargin
-from cpp_mujoco.io import resolve_named_file
+from cpp_mujoco.util.io import resolve_named_file
 
 BUNDLED_DIR = Path(__file__).resolve().parent / "bundled"
 GENERAL_AGENT = "general"  # bundled/general.pt: the general agent (scripts/train_general.py)

@@ -17,7 +17,7 @@ rebuilds each.
 
 Anything else (a folder, another file type, a truncated file, a different map size, NaN/inf
 weights, a non-positive budget scale) raises :class:`CheckpointError` with a message that names the
-file and says what is wrong. Writes go through :mod:`cpp_mujoco.io` (atomic; a full disk is a
+file and says what is wrong. Writes go through :mod:`cpp_mujoco.util.io` (atomic; a full disk is a
 one-line ``WriteError`` and the previous file is untouched).
 """
 
@@ -39,8 +39,8 @@ from cpp_mujoco.agent.fcn_network import FCNQNetwork, check_fcn_kwargs
 from cpp_mujoco.agent.general_network import ARCHITECTURE as GENERAL
 from cpp_mujoco.agent.general_network import GeneralQNetwork, check_general_kwargs
 from cpp_mujoco.agent.network import QNetwork
-from cpp_mujoco.io import atomic_write_bytes
 from cpp_mujoco.maps import MAX_SIDE, GridMap, load_map
+from cpp_mujoco.util.io import atomic_write_bytes
 
 FORMAT_VERSION = 1
 AGENT_KIND = "cpp_mujoco.agent"
@@ -58,7 +58,8 @@ class CheckpointError(ValueError):
 
 
 def atomic_save(obj: dict, path: str | os.PathLike) -> Path:
-    """Serialise in memory, then write atomically (:mod:`cpp_mujoco.io`): a crash or a full disk
+    """Serialise in memory, then write atomically (:mod:`cpp_mujoco.util.io`): a crash or a full
+    disk
     never leaves half a file or a temporary one, and the previous file stays as it was.
 
     ``torch.save`` to a file reports a failed write as "unexpected pos …"; writing the bytes

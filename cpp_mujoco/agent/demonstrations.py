@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from cpp_mujoco.agent.replay import ReplayBuffer
-from cpp_mujoco.evaluate import evaluate, protocol_budgets, protocol_episodes
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets, protocol_episodes
 
 
 @dataclass

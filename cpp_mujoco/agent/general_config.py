@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.map_pool import TRAIN_SEEDS, VALIDATION_SEEDS, check_seeds
-from cpp_mujoco.map_generator import MIN_SIZE
+from cpp_mujoco.map_sets.generator import MIN_SIZE
+from cpp_mujoco.map_sets.size_classes import budget_range
 from cpp_mujoco.maps import MAX_SIDE
-from cpp_mujoco.size_classes import budget_range
 
 UNUSED = ("map", "min_budget", "max_budget")  # inherited, not options here
 NETWORK_FIELDS = ("local_size", "global_size", "conv_filters", "hidden", "num_hidden")
@@ -94,10 +94,10 @@ class GeneralTrainConfig(TrainConfig):
     # with --init-from a network without it, the new inputs start at zero weight
     target_input: bool = False
     # train on every named map's images — its 8 rotations and mirror images (a square map;
-    # :mod:`cpp_mujoco.map_symmetry`) — so the network learns the site, not one orientation of it
+    # :mod:`cpp_mujoco.maps.symmetry`) — so the network learns the site, not one orientation of it
     named_symmetries: bool = False
     # as a policy (validation, the final evaluation, the agent file), argmax of the Q-values
-    # averaged over the map's symmetries (:func:`~cpp_mujoco.map_symmetry.symmetric_q_values`:
+    # averaged over the map's symmetries (:func:`~cpp_mujoco.grid.symmetry.symmetric_q_values`:
     # 8 readings of one network for a square map); a config stored before reads False
     symmetric_q: bool = False
     # --- defaults that differ from the per-map agent's -----------------------------------------

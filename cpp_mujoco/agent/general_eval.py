@@ -1,9 +1,10 @@
 """Greedy evaluation of a policy on a pool's maps: the general agent's validation.
 
 Each map is flown with the paper's protocol (every landing cell × every ``budget_step``-th
-budget of its size class, :func:`~cpp_mujoco.evaluate.evaluate`) and the figures are means over
+budget of its size class, :func:`~cpp_mujoco.protocol.evaluate.evaluate`) and the figures are means
+over
 the maps, so every map weighs the same whatever its size or landing zone — as for the held-out
-map sets (:mod:`cpp_mujoco.map_set_eval`), which stay the final test.
+map sets (:mod:`cpp_mujoco.protocol.map_sets`), which stay the final test.
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from cpp_mujoco.agent.map_pool import MapPool
-from cpp_mujoco.evaluate import evaluate, protocol_budgets
-from cpp_mujoco.io import atomic_write_text, json_default
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
+from cpp_mujoco.util.io import atomic_write_text, json_default
 
 
 @dataclass

@@ -52,8 +52,8 @@ from cpp_mujoco.agent.target_input import widen_for_target_input
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.agent.training_run import run_in_folder
-from cpp_mujoco.map_symmetry import map_images
 from cpp_mujoco.maps import load_map
+from cpp_mujoco.maps.symmetry import map_images
 from cpp_mujoco.planners import make_planner
 
 # flown on the validation maps beside the final agent: in the wind option the planner that prices

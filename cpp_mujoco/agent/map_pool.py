@@ -1,11 +1,11 @@
 """The generated maps a general agent trains and is validated on, padded to one side.
 
-Seeds decide the maps (:func:`~cpp_mujoco.map_generator.generate_from_seed`), so a pool is its
+Seeds decide the maps (:func:`~cpp_mujoco.map_sets.generator.generate_from_seed`), so a pool is its
 sizes, its count per size and its first seed, and a checkpoint can say exactly what it was
 trained on — plus the maps a user brings (:meth:`MapPool.with_named`: the paper's A, B, C or a
 site's PNG), recorded by name and digest. Three seed ranges never overlap: training draws below
 1,000,000, the held-out test sets own 1,000,000..1,999,999
-(:data:`~cpp_mujoco.map_sets.HELDOUT_SEEDS`; a brought map that is one of theirs is refused) and
+(:data:`~cpp_mujoco.map_sets.sets.HELDOUT_SEEDS`; a brought map that is one of theirs is refused) and
 validation (the maps ``best.pt`` is chosen on) owns :data:`VALIDATION_SEEDS` — choosing on the
 test maps, or validating on training maps, would make the reported numbers optimistic.
 
@@ -27,10 +27,10 @@ from cpp_mujoco.grid.mdp import GridConfig, Rewards
 from cpp_mujoco.grid.return_rule import paid_actions
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.grid.wind import GridWind
-from cpp_mujoco.map_generator import generate_from_seed
-from cpp_mujoco.map_sets import HELDOUT_SEEDS, heldout_set_of
+from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.map_sets.sets import HELDOUT_SEEDS, heldout_set_of
+from cpp_mujoco.map_sets.size_classes import size_config
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.size_classes import size_config
 
 TRAIN_SEEDS = range(0, 1_000_000)
 VALIDATION_SEEDS = range(2_000_000, 3_000_000)
@@ -60,7 +60,7 @@ class MapPool:
     def generate(cls, sizes: tuple[int, ...], per_size: int, first_seed: int, **options) -> MapPool:
         """``per_size`` maps of each size from seeds ``first_seed`` on (the same seeds for
         every size: a seed gives another map at another size), drawn with the generator
-        ``options`` (:class:`~cpp_mujoco.map_generator.GeneratorConfig` fields)."""
+        ``options`` (:class:`~cpp_mujoco.map_sets.generator.GeneratorConfig` fields)."""
         if per_size < 1 or not sizes:
             raise ValueError(f"a map pool needs sizes and >= 1 map per size, got {per_size}")
         seeds = [first_seed + i for i in range(per_size)]

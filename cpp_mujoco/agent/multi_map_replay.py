@@ -21,7 +21,7 @@ import torch
 from cpp_mujoco.agent.demonstrations import record_demonstrations
 from cpp_mujoco.agent.map_pool import MapPool, pad_layout, padded_cell
 from cpp_mujoco.agent.replay import ReplayBuffer
-from cpp_mujoco.evaluate import protocol_budgets
+from cpp_mujoco.protocol.evaluate import protocol_budgets
 
 
 class MultiMapReplay(ReplayBuffer):

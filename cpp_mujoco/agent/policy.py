@@ -8,19 +8,22 @@ is still within reach."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import torch
 
 from cpp_mujoco.agent.ddqn import mask_unsafe
 from cpp_mujoco.agent.fcn_network import FCNQNetwork
-from cpp_mujoco.agent.finish_mask import finish_allowed
+from cpp_mujoco.agent.finish_mask import FINISH_RULE, finish_allowed
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
-from cpp_mujoco.agent.revisit_mask import RevisitMemory
+from cpp_mujoco.agent.revisit_mask import REVISIT_RULE, RevisitMemory
+from cpp_mujoco.grid.return_rule import RETURN_RULE
+from cpp_mujoco.grid.symmetry import SYMMETRIC_Q_RULE, symmetric_q_values
 from cpp_mujoco.grid.way_home import ReturnMargin
-from cpp_mujoco.map_symmetry import symmetric_q_values
-from cpp_mujoco.policy import as_batch
+from cpp_mujoco.protocol.policy import as_batch
 
 FORWARD_CELLS = 2**20  # observations per forward pass × map cells: caps the conv activations
 
@@ -76,7 +79,7 @@ class GreedyAgent:
 
     def q_values(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """Q-values (N, 5) for a batch of observations; with ``symmetric_q`` their mean over
-        the map's images (:func:`~cpp_mujoco.map_symmetry.symmetric_q_values`)."""
+        the map's images (:func:`~cpp_mujoco.grid.symmetry.symmetric_q_values`)."""
         if self.symmetric_q:
             return symmetric_q_values(self.network_q_values, obs)
         return self.network_q_values(obs)
@@ -102,6 +105,28 @@ class GreedyAgent:
             )
             parts.append(self.network(grid, scalars).cpu().numpy())
         return np.concatenate(parts)
+
+    def identity(self) -> dict[str, Any]:
+        """What results record of this agent (:func:`~cpp_mujoco.protocol.policy.policy_identity`):
+        its network's inputs, and each rule it acts with by its versioned rule string."""
+        out: dict[str, Any] = {}
+        kwargs = getattr(self.network, "kwargs", None)
+        if isinstance(kwargs, dict):  # its inputs too (moves home, moves to new targets, wind)
+            out["network"] = dict(kwargs)
+        out["return_mask"] = self.return_mask
+        if self.return_mask:
+            out["return_rule"] = RETURN_RULE
+            if self.wind_margin is not None:  # what the rule keeps in wind
+                out["wind_margin"] = {k: float(v) for k, v in vars(self.wind_margin).items()}
+        out["revisit_mask"] = self.revisit_mask
+        if self.revisit_mask:
+            out["revisit_rule"] = REVISIT_RULE
+        out["finish_mask"] = self.finish_mask
+        if self.finish_mask:
+            out["finish_rule"] = FINISH_RULE
+        if self.symmetric_q:  # recorded only when on: results keep their keys
+            out["symmetric_q"] = SYMMETRIC_Q_RULE
+        return out
 
     def reset(self, num_episodes: int, seed: int | None = None) -> None:
         """Episode start: the revisit mask forgets the cells flown (the Q-values keep no state)."""

@@ -13,7 +13,8 @@ when the mask leaves no move and no landing.
 
 It needs the episode's memory — the cells flown since the coverage last grew — so the agent
 holds one row per episode of its batch, started afresh by ``reset`` at every episode start
-(:func:`cpp_mujoco.policy.start_episodes`). Training never uses it (the soft-max explores, and the
+(:func:`cpp_mujoco.protocol.policy.start_episodes`). Training never uses it (the soft-max explores,
+and the
 DDQN target reads stored states without a past); validation and every result of an agent flown
 with it do, and results name it (:data:`REVISIT_RULE`, ``conditions.policy``).
 """

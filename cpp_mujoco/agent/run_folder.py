@@ -86,7 +86,8 @@ def claim_run_folder(
                 raise RunFolderError(f"cannot lock run folder {out}: {exc.strerror}") from None
             raise RunFolderError(f"run folder {out} is in use by {_holder(fd)}") from None
         # the lock file holds the holder's pid for the message above; it is written in place
-        # (not through cpp_mujoco.io's atomic replace), because replacing it would drop the lock
+        # (not through cpp_mujoco.util.io's atomic replace), because replacing it would drop the
+        # lock
         try:
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)

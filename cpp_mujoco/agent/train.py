@@ -42,10 +42,10 @@ from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.replay import ReplayBuffer, concatenate_batches
 from cpp_mujoco.agent.run_folder import StopSignals, TrainingInterrupted
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
-from cpp_mujoco.evaluate import EvaluationResult, evaluate, protocol_budgets
+from cpp_mujoco.agent.training_plot import write_training_log
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.planners import make_planner
-from cpp_mujoco.review.training_plot import write_training_log
+from cpp_mujoco.protocol.evaluate import EvaluationResult, evaluate, protocol_budgets
 
 
 class Trainer:

@@ -199,7 +199,7 @@ def benchmark_protocol(map: str = "A", step: int = 1, ray_step: int = 1) -> dict
     ``stepping_floor_s``: the protocol's physics steps at :func:`batch_stepping_rate` on both
     cores — MuJoCo's own share of the wall time, which no Python around it can remove."""
     from cpp_mujoco.agent import load_agent
-    from cpp_mujoco.evaluate import evaluate, protocol_budgets
+    from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 
     policy = load_agent(map)
     start = time.perf_counter()

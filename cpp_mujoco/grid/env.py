@@ -36,6 +36,6 @@ class GridEnv(SingleGridEnv):
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
-        from cpp_mujoco.review.grid_image import grid_image
+        from cpp_mujoco.grid.image import grid_image
 
         return grid_image(self.grid_map, self.mdp.coverage[0], self.mdp.position[0])

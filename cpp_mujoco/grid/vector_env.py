@@ -222,7 +222,7 @@ class GridVectorEnv(VectorEnv):
         """One (H·16, W·16, 3) map image per env (zones, coverage, UAV), as SyncVectorEnv."""
         if self.render_mode != "rgb_array":
             return None
-        from cpp_mujoco.review.grid_image import grid_image
+        from cpp_mujoco.grid.image import grid_image
 
         m = self.mdp
         return tuple(

@@ -1,7 +1,8 @@
 """The arena: the ground plane, the overview camera and the light, with the quadrotor attached.
 
 Only what the physics needs is a model geom: the map's ground tiles and no-fly volumes are drawn
-at render time (:mod:`cpp_mujoco.review.scenery`), which makes every ``mj_step`` ~40 % cheaper on a
+at render time (:mod:`cpp_mujoco.physics.view.scenery`), which makes every ``mj_step`` ~40 %
+cheaper on a
 16×16 map. The map itself is stored in the model (a ``<custom><numeric>`` field the physics never
 reads) so a renderer given only the model can still draw it. Cells sit where
 :class:`~cpp_mujoco.physics.geometry.GridGeometry` puts them (x east, y north, the map centred on
@@ -24,7 +25,7 @@ from cpp_mujoco.physics.quadrotor import quadrotor_xml
 with warnings.catch_warnings():
     # dm_control picks its own GL backend when imported; with MUJOCO_GL unset it tries GLFW,
     # which warns on a headless machine. We never render through dm_control (rendering picks
-    # its backend at the first frame, see review/rendering.py), so that warning says nothing.
+    # its backend at the first frame, see physics/view/rendering.py), so that warning says nothing.
     if not os.environ.get("MUJOCO_GL"):
         warnings.filterwarnings("ignore", module="glfw")
     from dm_control import mjcf
@@ -79,7 +80,7 @@ def build_arena(grid_map: GridMap, config: PhysicsConfig, fov_side: int = 3) -> 
         "geom", name="ground", type="plane", size=(hx + margin, hy + margin, 0.1),
         rgba=(0.35, 0.35, 0.33, 1), contype=1, conaffinity=1, condim=3,
     )  # fmt: skip
-    # the map, for the renderer's scenery (review/scenery.py); MuJoCo's physics never reads it
+    # the map, for the renderer's scenery (physics/view/scenery.py); MuJoCo's physics never reads it
     values = scenery_numeric(grid_map, config.cell_size, 2 * config.altitude)
     for name, data in scenery_fields(values):
         arena.custom.add("numeric", name=name, data=data)

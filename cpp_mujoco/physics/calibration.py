@@ -25,13 +25,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from cpp_mujoco.io import WriteError, atomic_write_text
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.action import HOVER, MOVE
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.flight import Flight
 from cpp_mujoco.physics.power.rotor import PowerModel
 from cpp_mujoco.physics.quadrotor import QuadrotorParams, quadrotor_xml
+from cpp_mujoco.util.io import WriteError, atomic_write_text
 
 _MEMO: dict[str, dict] = {}
 # a calm one-cell move costs about hover power × move duration (≈ 1.03× for the defaults):
@@ -141,7 +141,7 @@ def unit_energy(config: PhysicsConfig) -> float:
 # the modules and folders whose code flies a calibration move
 FLIGHT_SOURCES = (
     "flight.py", "tick.py", "action.py", "airborne.py", "arena.py", "quadrotor.py",
-    "geometry.py", "config.py",
+    "geometry.py", "config.py", "kernel_constants.py", "tick_kernels.py",
 )  # fmt: skip
 FLIGHT_PARTS = ("control", "air", "power", "sensing")
 

@@ -8,7 +8,7 @@ call per control tick serves them all. The envs take them as options
 :class:`~cpp_mujoco.physics.control.controller.GeometricController` with ``config.controller``
 gains and :class:`~cpp_mujoco.physics.air.wind.Wind` from ``config``'s weather, which run fused
 into the compiled tick and are themselves parts (``Wind.velocity``, ``GeometricController``'s
-compiled law through :func:`~cpp_mujoco.physics.control.kernels.thrusts`).
+compiled law through :func:`~cpp_mujoco.physics.tick_kernels.thrusts`).
 
 The budget unit stays the calibration of the built-in parts in calm air: a part that flies a
 move more cheaply gets more moves out of a budget, which is the point of comparing parts.

@@ -13,7 +13,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from cpp_mujoco.resources import bundled_dir
+from cpp_mujoco.util.resources import bundled_dir
 
 ROTORS = ("fl", "fr", "rr", "rl")  # actuator order in the MJCF
 

@@ -1,5 +1,5 @@
 """The flight's control tick: the Python around the compiled kernels of
-:mod:`~cpp_mujoco.physics.control.kernels` and :mod:`~cpp_mujoco.physics.power.kernels`.
+:mod:`~cpp_mujoco.physics.tick_kernels` and :mod:`~cpp_mujoco.physics.power.kernels`.
 
 Why: as numpy arrays a tick is ≈ 150 calls over short arrays and costs about half as long as
 MuJoCo's five physics steps between ticks at 128 drones (more than them at one drone); compiled,
@@ -19,36 +19,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cpp_mujoco.physics.action import FAILURES, MacroActions
-from cpp_mujoco.physics.air.wind import MAX_KEYS, Wind
-from cpp_mujoco.physics.control.controller import GRAVITY, GeometricController
-from cpp_mujoco.physics.power.battery import OCV, OVERLOAD, PackSpec
-from cpp_mujoco.physics.power.rotor import IntervalEnergy
+from cpp_mujoco.physics.kernel_constants import control_constants
+from cpp_mujoco.physics.power.battery import OVERLOAD
 
 if TYPE_CHECKING:
     from cpp_mujoco.physics.flight import Flight
-
-
-def control_constants(
-    dt: float,
-    wind: Wind | None = None,
-    controller: GeometricController | None = None,
-    energy: IntervalEnergy | None = None,
-    spec: PackSpec | None = None,
-    half_rho_cda: float = 0.0,
-) -> np.ndarray:
-    """The constants the kernels read, in their order: wind (and gravity), the control
-    interval, controller, energy, battery, drag, turbulence, the OCV curve, the turbulence
-    table's size limit (the parts left out read as zeros: one part alone)."""
-    w, e = wind, energy
-    turb = w.turbulence if w is not None else None
-    return np.array([
-        *((w.std, w.decay, w.kick) if w else [0.0] * 3), GRAVITY, w.dt if w else dt,
-        dt, *(controller.constants(dt) if controller is not None else [0.0] * 20),
-        *([e.power.coef, e.power.avionics * len(e.decay), e.dt, e.mean_decay] if e else [0.0] * 4),
-        *((spec.cells, spec.resistance, spec.cutoff_v) if spec else [0.0] * 3), half_rho_cda,
-        turb is not None, *((turb.min_airspeed, turb.per_log, *turb.gain) if turb else [0.0] * 5),
-        *OCV, MAX_KEYS,
-    ], dtype=float)  # fmt: skip
 
 
 class Tick:
@@ -56,7 +31,7 @@ class Tick:
     returns the drones that step next."""
 
     def __init__(self, flight: Flight):
-        from cpp_mujoco.physics.control import kernels as control_kernels
+        from cpp_mujoco.physics import tick_kernels as control_kernels
         from cpp_mujoco.physics.power import kernels as power_kernels
 
         self.k, self.p, self.f, self.failures = control_kernels, power_kernels, flight, FAILURES

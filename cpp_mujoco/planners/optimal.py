@@ -24,8 +24,8 @@ from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners.beam_search import BeamSearchPlanner
 from cpp_mujoco.planners.optimal_solver import Mission, SolverOptions, solve_episode, solver_version
-from cpp_mujoco.planners.optimum_cache import OptimumCache
 from cpp_mujoco.planners.rollout import decode_observation, rollout
+from cpp_mujoco.protocol.optimum_cache import OptimumCache
 
 SAVE_EVERY_S = 10.0  # an interrupted solve loses at most this much finished work
 
@@ -95,10 +95,11 @@ def solve_episodes(
     budgets = np.asarray(budgets, dtype=np.int64).reshape(-1)
     keys = [(int(s[0]), int(s[1]), int(b)) for s, b in zip(starts, budgets, strict=True)]
     first = {key: i for i, key in reversed(list(enumerate(keys)))}  # each episode once
+    solver = solver_version(options.solver)
     todo = sorted(
         i
         for i in first.values()
-        if not cache.usable(tuple(starts[i]), int(budgets[i]), options)
+        if not cache.usable(tuple(starts[i]), int(budgets[i]), solver, options.time_limit_s)
     )  # fmt: skip
     if todo:
         cells = starts[todo, 0] * grid_map.shape[1] + starts[todo, 1]
@@ -111,7 +112,6 @@ def solve_episodes(
             (int(c), int(budgets[i]), h, options)
             for c, i, h in zip(cells, todo, hints, strict=True)
         ]
-        solver = solver_version(options.solver)
         saved = time.monotonic()
         bar = tqdm(total=len(work), desc=f"optimum {grid_map.label}", disable=not progress)
         pool = multiprocessing.get_context("fork").Pool(jobs, _init_worker, (grid_map, fov_side))

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from cpp_mujoco.episode import run_batch
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.protocol.episode import run_batch
 
 
 def decode_observation(obs: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

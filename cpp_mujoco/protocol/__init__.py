@@ -1,3 +1,3 @@
-"""The evaluation protocol's engines: the physics episodes flown in this process, over a local
-process pool or on Ray. (The rest of the protocol layer still sits at the package's top:
-``episode``, ``evaluate``, ``wind_protocol``, ``map_set_eval``.)"""
+"""The evaluation protocol: the one episode loop, the policy protocol, ``evaluate`` over the
+paper's episodes (grid or physics, local or Ray), wind and map-set protocols, the optimum beside
+every result. It knows a policy only through :mod:`~cpp_mujoco.protocol.policy`."""

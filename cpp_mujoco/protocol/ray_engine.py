@@ -26,8 +26,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from cpp_mujoco.episode import EpisodeRecord
-from cpp_mujoco.protocol.physics_engines import Job, Task, fly_chunk
+from cpp_mujoco.protocol.episode import EpisodeRecord
+from cpp_mujoco.protocol.physics_tasks import Job, Task, fly_chunk
 
 MAX_RETRIES = 3  # runs of a task whose worker process died, after the first
 INSTALL_HINT = "pip install -e .[ray]  (or: pip install 'cpp-mujoco[ray]')"

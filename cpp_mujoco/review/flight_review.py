@@ -24,7 +24,8 @@ HOLD_S = 2.0  # s of the final state, with the outcome, at the end of each video
 
 
 class ActionTap:
-    """The env as :func:`~cpp_mujoco.episode.run_episode` drives it, noting each action before
+    """The env as :func:`~cpp_mujoco.protocol.episode.run_episode` drives it, noting each action
+    before
     it is flown: the HUD names the action of the move in the frame, which the env's own hooks
     learn only after the move."""
 
@@ -110,9 +111,9 @@ class FlightReview:
         on_chase_frame: Callable[[np.ndarray], None] | None = None,
         hud: bool = True,
     ):
-        from cpp_mujoco.review.chase import chase_camera, onboard_camera
-        from cpp_mujoco.review.rendering import VideoWriter
-        from cpp_mujoco.review.scenery import Scenery
+        from cpp_mujoco.physics.view.chase import chase_camera, onboard_camera
+        from cpp_mujoco.physics.view.rendering import VideoWriter
+        from cpp_mujoco.physics.view.scenery import Scenery
 
         self.env, self.recorder, self.image_every = env, recorder, image_every
         self.about, self.tap, self.on_chase_frame = about, tap, on_chase_frame

@@ -1,4 +1,4 @@
-"""Figures of map-set results (:mod:`cpp_mujoco.map_set_eval`): how each policy did on each map
+"""Figures of map-set results (:mod:`cpp_mujoco.protocol.map_sets`): how each policy did on each map
 of a held-out set, and what it did on a few of them.
 
 Both are drawn from a result's JSON dict (``MapSetResult.to_dict()``, or the file ``evaluate
@@ -23,7 +23,7 @@ from matplotlib.lines import Line2D
 
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.review.plots import COVERAGE_LABEL, draw_trajectory, save_figure
-from cpp_mujoco.review.tables import backend_name
+from cpp_mujoco.util.tables import backend_name
 
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 TICK_LABELS_UP_TO = 40  # maps on the x axis named one by one; beyond, only their rank
@@ -205,7 +205,7 @@ def result_grid_map(data: dict, row: dict, grid_maps: Mapping[str, GridMap] | No
     """A row's map: the one given, else regenerated from its seed and checked by its digest."""
     if grid_maps and row["map"] in grid_maps:
         return grid_maps[row["map"]]
-    from cpp_mujoco.map_generator import GENERATOR_VERSION, generate_from_seed
+    from cpp_mujoco.map_sets.generator import GENERATOR_VERSION, generate_from_seed
 
     grid_map = generate_from_seed(int(row["seed"]), int(data["map_set"]["size"]))
     if grid_map.digest != row["map_digest"]:

@@ -15,12 +15,12 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from cpp_mujoco.evaluate import EvaluationResult
 from cpp_mujoco.grid.coverage import square_fov_union
-from cpp_mujoco.io import atomic_path
+from cpp_mujoco.grid.image import zone_colors
 from cpp_mujoco.maps import GridMap, load_map
-from cpp_mujoco.review.grid_image import zone_colors
-from cpp_mujoco.review.tables import backend_name
+from cpp_mujoco.protocol.evaluate import EvaluationResult
+from cpp_mujoco.util.io import atomic_path
+from cpp_mujoco.util.tables import backend_name
 
 BUDGET_LABEL = "movement budget (actions; in MuJoCo: calm-move energy units)"
 COVERAGE_LABEL = "coverage ratio (share of target cells)"
@@ -59,7 +59,7 @@ def conditions_text(results: Sequence[EvaluationResult]) -> str:
 
 def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
     """Save atomically: a crash or a full disk never leaves a half-written figure, and a failed
-    write is a one-line :class:`~cpp_mujoco.io.WriteError`."""
+    write is a one-line :class:`~cpp_mujoco.util.io.WriteError`."""
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=120, bbox_inches="tight")
     return Path(path)

@@ -12,7 +12,7 @@ come, else from their first values).
 
 The file is written as the mission goes, in chunks of a few seconds of wall time (one chunk per
 entity per flush: flushing every step made a mission ~1,000 tiny chunks). Closing it — also on
-Ctrl-C or SIGTERM (:mod:`cpp_mujoco.signals`) — writes the footer ``rerun rrd verify`` wants; a
+Ctrl-C or SIGTERM (:mod:`cpp_mujoco.util.signals`) — writes the footer ``rerun rrd verify`` wants; a
 recording cut by SIGKILL keeps what was flushed and can be repaired (see the README). A mission
 closed normally is then compacted (``rerun rrd optimize``, atomically), so its chunk count no
 longer grows with the wall time the flight took and ``rerun rrd stats`` finds nothing to merge.
@@ -31,10 +31,10 @@ import numpy as np
 import rerun as rr
 
 from cpp_mujoco.grid.actions import ACTION_NAMES, LAND
+from cpp_mujoco.grid.image import grid_image, zone_colors
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
-from cpp_mujoco.review.grid_image import grid_image, zone_colors
 from cpp_mujoco.review.recording_tools import blueprint, compact
 
 __all__ = ["MissionRecorder", "batcher_config", "blueprint"]
@@ -322,7 +322,7 @@ class MissionRecorder:
     def _flush(self) -> None:
         """Flush to the file; a failed write (full disk, size limit) is a one-line WriteError —
         rerun's own flush would wait forever for a writer that cannot write."""
-        from cpp_mujoco.io import WriteError, _reason
+        from cpp_mujoco.util.io import WriteError, _reason
 
         try:
             self.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)

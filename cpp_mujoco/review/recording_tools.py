@@ -16,7 +16,7 @@ from pathlib import Path
 
 import rerun.blueprint as rrb
 
-from cpp_mujoco.io import WriteError, atomic_path
+from cpp_mujoco.util.io import WriteError, atomic_path
 
 COMPACT_TIMEOUT_S = 120.0
 

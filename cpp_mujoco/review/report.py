@@ -23,9 +23,9 @@ from html import escape
 from pathlib import Path
 from urllib.parse import quote
 
-from cpp_mujoco.io import atomic_write_text
 from cpp_mujoco.review.report_conditions import conditions_summary, merge
-from cpp_mujoco.review.tables import backend_name
+from cpp_mujoco.util.io import atomic_write_text
+from cpp_mujoco.util.tables import backend_name
 
 REPORT_NAME = "index.html"
 _CSS = """

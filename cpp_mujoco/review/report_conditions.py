@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from cpp_mujoco.review.tables import BACKEND_NAMES, backend_name
+from cpp_mujoco.util.tables import BACKEND_NAMES, backend_name
 
 _POINTS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
 

@@ -117,7 +117,7 @@ def second_order(r: float) -> tuple[float, ...]:
 class DrydenTurbulence:
     """The three forming filters' exact coefficients at the control rate ``dt``, for the air
     moving past at a given airspeed (the filters run in the tick's kernel,
-    :func:`~cpp_mujoco.physics.control.kernels.dryden_step`).
+    :func:`~cpp_mujoco.physics.tick_kernels.dryden_step`).
 
     The airspeed in the time scales is rounded to a geometric grid of ``airspeed_step``
     (relative, default 0.5 %: T = L/V off by at most 0.25 %) so that each tick looks its
@@ -157,7 +157,7 @@ class DrydenTurbulence:
         """``ticks`` consecutive gusts (u, v, w in m/s, (ticks, 3)) at a fixed airspeed, the
         filters started from their stationary distribution: the flight's own kernel, fed the
         normals in the order a drone's wind takes them (blocks of 1000 popped from the end)."""
-        from cpp_mujoco.physics.control.kernels import dryden_step
+        from cpp_mujoco.physics.tick_kernels import dryden_step
 
         need = 5 + 5 * ticks
         blocks = [rng.standard_normal(1000)[::-1] for _ in range(-(-need // 1000))]

@@ -5,7 +5,7 @@ The drag F = ½ρ·C_dA·|v_rel|·v_rel (v_rel = wind − body velocity) is appl
 mass through ``xfrc_applied``; thrust must tilt and grow to hold against it, which is what makes
 a headwind cost energy. The wind is a swappable part of the flight (any
 :class:`~cpp_mujoco.physics.parts.WindModel`); the drag belongs to the airframe. The rules run in
-the tick's kernels (:func:`~cpp_mujoco.physics.control.kernels.wind`); this module holds their
+the tick's kernels (:func:`~cpp_mujoco.physics.tick_kernels.wind`); this module holds their
 constants and each drone's state.
 """
 
@@ -13,11 +13,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cpp_mujoco.physics.air.turbulence import DrydenParams, DrydenTurbulence
-from cpp_mujoco.physics.config import PhysicsConfig
+from cpp_mujoco.physics.kernel_constants import MAX_KEYS, control_constants
+
+if TYPE_CHECKING:
+    from cpp_mujoco.physics.config import PhysicsConfig
 
 
 class NoiseBlocks:
@@ -150,8 +154,7 @@ class Wind:
     def velocity(self, drones: np.ndarray, time: np.ndarray, position: np.ndarray) -> np.ndarray:
         """The wind (m, 3) drones ``drones`` at ``position`` (m, 3) fly in this tick; their
         gusts and turbulence advance one tick (:class:`~cpp_mujoco.physics.parts.WindModel`)."""
-        from cpp_mujoco.physics.control import kernels
-        from cpp_mujoco.physics.tick import control_constants
+        from cpp_mujoco.physics import tick_kernels as kernels
 
         drones = np.asarray(drones, dtype=np.int64)
         pos = np.ascontiguousarray(position, dtype=float)
@@ -165,8 +168,3 @@ class Wind:
             if need == 0:
                 return out
             self.supply(need, drones, kernels)
-
-
-# tabled turbulence time scales: airspeeds up to e^(key·0.5 %) ≈ 1e35 m/s; a drone's airspeed
-# past that (or NaN) has diverged already, and its turbulence turns NaN (it fails next tick)
-MAX_KEYS = 1 << 14

@@ -7,7 +7,7 @@ Chain: position/velocity error → desired force (minus the observed external fo
 attitude (thrust axis along the force, heading fixed) → torque from attitude and body-rate errors
 → rotor thrusts through the inverse allocation matrix, with saturation priority
 roll/pitch > collective thrust > yaw. The law runs in the flight's compiled tick
-(:func:`cpp_mujoco.physics.control.kernels.control`); this module holds its gains and its state
+(:func:`cpp_mujoco.physics.tick_kernels.control`); this module holds its gains and its state
 per drone, and the reference each drone follows.
 """
 
@@ -18,9 +18,8 @@ import math
 import numpy as np
 
 from cpp_mujoco.physics.config import ControllerGains
+from cpp_mujoco.physics.kernel_constants import GRAVITY, control_constants
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
-
-GRAVITY = 9.81
 
 
 class References:
@@ -110,8 +109,7 @@ class GeometricController:
         """Rotor thrusts (m, 4) for ``drones``: the compiled law as a
         :class:`~cpp_mujoco.physics.parts.Controller` (the flight runs the same kernel fused
         into its tick when this is its controller)."""
-        from cpp_mujoco.physics.control import kernels
-        from cpp_mujoco.physics.tick import control_constants
+        from cpp_mujoco.physics import tick_kernels as kernels
 
         m = len(drones)
         out = np.empty((m, 4))

@@ -146,7 +146,7 @@ class MuJoCoEnv(SingleGridEnv):
         if self.render_mode != "rgb_array":
             return None
         if self._camera is None:
-            from cpp_mujoco.review.rendering import chase_camera
+            from cpp_mujoco.physics.view.chase import chase_camera
 
             # the coverage row is marked in place by the flight: the seen cells light up live
             self._camera = chase_camera(self.model, *self.render_size, coverage=self.mdp.coverage)

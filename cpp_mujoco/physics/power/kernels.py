@@ -2,7 +2,7 @@
 implementation of the rules of :mod:`~cpp_mujoco.physics.power.rotor` and
 :mod:`~cpp_mujoco.physics.power.battery`, which hold their constants and state. :func:`power` is
 the last kernel of a tick (:mod:`~cpp_mujoco.physics.tick`), after
-:func:`~cpp_mujoco.physics.control.kernels.control` has written the drones' commands.
+:func:`~cpp_mujoco.physics.tick_kernels.control` has written the drones' commands.
 
 No fastmath. Every constant comes in an argument, none from another module's globals: numba
 would freeze those into its cache, which only notices changes to this file.
@@ -141,7 +141,8 @@ def power(go, st, cols, c, air, motors_on, t, energy_used, capacity, decay, ff, 
     """The energy and battery of a tick for drones ``go`` (their ctrl
     written, ``air`` row k the k-th's air in the body frame): the energy drawn, or the motors
     cut. ``flags`` per drone: 1 the pack could not carry the load, 2 the failsafe may land it;
-    returns how many are flagged. ``c``: ``compiled_tick.control_constants``."""
+    returns how many are flagged. ``c``:
+    :func:`~cpp_mujoco.physics.kernel_constants.control_constants`."""
     a0, u0, dt, cells, res, cutoff, curve = cols[2], cols[3], c[5], c[30], c[31], c[32], c[40:49]
     flagged = 0
     for k in range(go.size):

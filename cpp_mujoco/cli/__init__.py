@@ -1,0 +1,1 @@
+"""The command line, one module per subcommand (``cpp-mujoco <sub> --help``)."""

@@ -1,0 +1,270 @@
+"""The ``maps`` subcommand (list, show, ``--generate``) and the map sets ``evaluate --map-set``
+flies; like every command, these import the numerical modules only when they run.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from cpp_mujoco.cli.options import (
+    check_agent_file,
+    int_at_least,
+    optimal_options,
+    out_dir,
+    progress_wanted,
+)
+
+DEFAULT_SIZE = 16
+
+
+# ---------------------------------------------------------------------------------- options
+def add_generate_options(p) -> None:
+    p.add_argument(
+        "--generate", type=int_at_least(1), metavar="N",
+        help="write N random maps as PNG files into --out instead of drawing figures",
+    )  # fmt: skip
+    p.add_argument(
+        "--seed", type=int_at_least(0),
+        help="with --generate: the first map's seed; the n-th map is seed + n (default: 0). "
+        "Seeds 1000000..1999999 are the held-out test sets': never train on them",
+    )  # fmt: skip
+    p.add_argument(
+        "--size", type=int_at_least(8),
+        help=f"with --generate: the maps' side, cells (default: {DEFAULT_SIZE})",
+    )  # fmt: skip
+    p.add_argument(
+        "--door-wall", type=float, metavar="P",
+        help="with --generate: the chance each map has a wall across it with one door of 1-2 "
+        "cells, as on map C (default: 0, the held-out v1 sets' generator)",
+    )  # fmt: skip
+    p.add_argument(
+        "--overwrite", action="store_true",
+        help="with --generate: write into a non-empty --out (maps of the same name are replaced)",
+    )  # fmt: skip
+
+
+def add_map_set_options(p) -> None:
+    p.add_argument(
+        "--map-set", metavar="NAME",
+        help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1, doors16-v1: "
+        "every map with a wall and one door), flown on "
+        "--backend with its size class's budgets (16x16: 25..75, 32x32: 50..150); writes a JSON "
+        "and its figures (per-map coverage, example trajectories) into --out",
+    )  # fmt: skip
+    p.add_argument(
+        "--first", type=int_at_least(1), metavar="N",
+        help="with --map-set: only its first N maps, for a quick look (results say so)",
+    )  # fmt: skip
+
+
+# ---------------------------------------------------------------------------- maps --generate
+def check_generate_options(args) -> bool:
+    """Whether ``maps`` is to generate; a --generate-only option without it is bad input."""
+    if args.generate is None:
+        given = [o for o in ("seed", "size", "door_wall") if getattr(args, o) is not None]
+        given += ["overwrite"] if args.overwrite else []
+        if given:
+            flags = ", ".join("--" + o for o in given)
+            raise ValueError(f"{flags}: only with --generate N")
+        return False
+    if args.maps:
+        raise ValueError("--generate writes new maps; give no map names with it")
+    if args.out is None:
+        raise ValueError("--generate needs --out DIR, the folder for the PNG maps")
+    return True
+
+
+def _claim_folder(path: str, overwrite: bool) -> Path:
+    """The output folder, created; a non-empty one only with ``overwrite``."""
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file, not a folder")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise ValueError(f"--out {out} is not empty; give --overwrite to write into it anyway")
+    out = out_dir(path)
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise OSError(f"cannot write to output folder {out}: permission denied")
+    return out
+
+
+def cmd_generate(args) -> None:
+    """Write ``--generate N`` maps from seeds ``--seed`` on, one line per map."""
+    from cpp_mujoco.map_sets.generator import GeneratorConfig, generate_from_seed
+    from cpp_mujoco.map_sets.sets import HELDOUT_SEEDS
+    from cpp_mujoco.map_sets.size_classes import budget_range
+    from cpp_mujoco.maps import MAX_SIDE
+
+    size = DEFAULT_SIZE if args.size is None else args.size
+    first = 0 if args.seed is None else args.seed
+    seeds = range(first, first + args.generate)
+    if size > MAX_SIDE:
+        raise ValueError(f"--size {size}: maps are at most {MAX_SIDE} cells a side")
+    options = {} if args.door_wall is None else {"door_wall": args.door_wall}
+    GeneratorConfig.from_options(**options)  # a bad chance is an error before the folder
+    out = _claim_folder(args.out, args.overwrite)
+    if seeds.start < HELDOUT_SEEDS.stop and HELDOUT_SEEDS.start < seeds.stop:
+        print(
+            f"warning: seeds {HELDOUT_SEEDS.start}..{HELDOUT_SEEDS.stop - 1} make the held-out "
+            "test maps; do not train on these",
+            file=sys.stderr,
+        )
+    for seed in seeds:
+        grid_map = generate_from_seed(seed, size, **options)
+        path = out / f"{grid_map.name}.png"
+        grid_map.save(path)
+        c = grid_map.counts()
+        yellow = int((grid_map.target & grid_map.nfz).sum())
+        print(
+            f"{grid_map.name}  {size}x{size}  landing {c['landing']}  target {c['target']} "
+            f"({grid_map.target.mean():.0%})  no-fly {c['nfz']}  yellow {yellow}  "
+            f"digest {grid_map.digest}  {path}"
+        )
+    low, high = budget_range(size)
+    print(f"{len(seeds)} maps in {out}/ (size class {size}x{size}: budgets {low}..{high})")
+
+
+# --------------------------------------------------------------------------- evaluate --map-set
+def agent_entry(
+    spec: str, agent, symmetric_q: bool | None, finish_mask: bool | None = None
+) -> tuple[str, object]:
+    """(label, agent) of ``--agent SPEC``; ``--[no-]symmetric-q`` and ``--[no-]finish-mask``
+    override the file's rules and say so in the label (so in file names: runs with and without
+    never overwrite each other)."""
+    notes = []
+    if symmetric_q is not None:
+        agent.symmetric_q = symmetric_q
+        notes.append("symmetric Q" if symmetric_q else "plain Q")
+    if finish_mask is not None:
+        agent.finish_mask = finish_mask
+        notes.append("finish mask" if finish_mask else "no finish mask")
+    return f"ddqn[{', '.join([spec, *notes])}]", agent
+
+
+def _set_agent(spec: str, set_name: str, size: int):
+    """A trained agent for a map set: never a per-map agent (the bundled ones, or one trained
+    on a bundled map), which only flies the map it was trained on."""
+    from cpp_mujoco.agent import GENERAL_AGENTS, bundled_agents, load_agent
+    from cpp_mujoco.maps import bundled_maps
+    from cpp_mujoco.util.io import is_path_like
+
+    check_agent_file(spec)
+    per_map = f"agent {spec!r} is a per-map agent"
+    if not is_path_like(spec, ".pt") and spec in bundled_agents() and spec not in GENERAL_AGENTS:
+        raise ValueError(
+            f"{per_map}: it flies only map {spec.split('-')[0]}, not map set {set_name!r}; "
+            "evaluate planners (--planner) or an agent trained on generated maps there"
+        )
+    agent = load_agent(spec)
+    trained_on = agent.metadata.get("map")
+    if trained_on in bundled_maps():
+        raise ValueError(f"{per_map} (trained on map {trained_on}); it cannot fly {set_name!r}")
+    if agent.map_shape is not None and tuple(agent.map_shape) != (size, size):
+        h, w = agent.map_shape
+        raise ValueError(
+            f"agent {spec!r} flies {h}x{w} maps; map set {set_name!r} is {size}x{size}"
+        )
+    return agent
+
+
+def grid_wind_option(args):
+    """``--grid-wind S``: the grid's wind option at S m/s in every episode, each from one of the
+    four compass directions, with the calibrated gusts (None without it)."""
+    speed = getattr(args, "grid_wind", None)
+    if speed is None:
+        return None
+    if args.backend != "grid":
+        raise ValueError("--grid-wind is the grid's wind option; in MuJoCo use --wind-speed")
+    from cpp_mujoco.grid.wind import GridWind
+
+    return GridWind(min_speed=speed, max_speed=speed, calm_fraction=0.0)
+
+
+def cmd_evaluate_map_set(
+    args, planner_names: tuple[str, ...], weather: dict | None = None, runtime=None
+) -> None:
+    """``evaluate --map-set NAME``: the protocol on every map of the set (on the grid or in
+    MuJoCo), a per-map table, the means per policy, one JSON with all of it, and its figures
+    beside it — as ``evaluate`` writes figures beside its JSON for single maps."""
+    from contextlib import nullcontext
+
+    if args.map:
+        raise ValueError("--map-set replaces --map; give one of them")
+    from cpp_mujoco.map_sets.sets import load_map_set, map_set_spec
+    from cpp_mujoco.planners import make_planner
+
+    spec = map_set_spec(args.map_set)
+    agents = [
+        agent_entry(a, _set_agent(a, spec.name, spec.size), args.symmetric_q, args.finish_mask)
+        for a in args.agent
+    ]
+    maps = load_map_set(spec.name, first=args.first)
+    names = args.planner or ([] if agents else list(planner_names))
+
+    policies = [(n, make_planner(n, optimal=optimal_options(args))) for n in names] + agents
+    out = out_dir(args.out)
+    from cpp_mujoco.protocol.map_sets import evaluate_map_set
+    from cpp_mujoco.review.map_set_figures import load_map_set_result, write_map_set_figures
+    from cpp_mujoco.review.results import file_part
+
+    physics: dict = {}
+    if args.backend == "mujoco":
+        engine = "ray" if args.ray else "local"
+        physics = {"workers": args.workers, "env_kwargs": weather or {}, "engine": engine}
+    wind = grid_wind_option(args)
+    if wind is not None:
+        physics["grid_wind"] = wind
+    with runtime or nullcontext():
+        result = evaluate_map_set(
+            spec, maps, policies, args.budget_step, progress_wanted(args), args.backend,
+            **physics,
+        )  # fmt: skip
+    per_map, means = result.tables()
+    part = "" if args.first is None else f"_first{args.first}"
+    backend = args.backend if wind is None else f"grid-wind{args.grid_wind:g}"  # names the wind
+    path = result.to_json(out / f"{backend}_{file_part(spec.name)}{part}.json")
+    grid_maps = {m.label: m for m in result.maps}  # drawn from the JSON just written
+    figures = write_map_set_figures({path.stem: load_map_set_result(path)}, out, grid_maps)
+    budgets = f"budgets {result.budgets[0]}..{result.budgets[-1]} step {args.budget_step}"
+    where = args.backend if wind is None else f"grid, wind {args.grid_wind:g} m/s from N/E/S/W"
+    print(f"map set {spec.name}: {len(maps)} of {spec.count} maps, {budgets}, {where}")
+    print(per_map)
+    print()
+    print(means)
+    print(f"\nresults: {path}")
+    print("figures: " + ", ".join(str(f) for f in figures))
+
+
+def cmd_maps(args) -> None:
+
+    if check_generate_options(args):
+        return cmd_generate(args)
+    from cpp_mujoco.maps import bundled_maps, load_map
+    from cpp_mujoco.review.plots import map_figure
+    from cpp_mujoco.review.results import file_part
+    from cpp_mujoco.util.tables import format_table
+
+    grid_maps = [load_map(spec) for spec in args.maps or bundled_maps()]  # all checked first
+    out = out_dir(args.out or "out/maps")
+    rows = []
+    for grid_map in grid_maps:
+        path = map_figure(grid_map, out / f"map_{file_part(grid_map.label)}.png")
+        rows.append(
+            {
+                "map": grid_map.label,
+                "size": "x".join(map(str, grid_map.shape)),
+                **grid_map.counts(),
+                "figure": str(path),
+            }
+        )
+    print(format_table(rows, ["map", "size", "landing", "target", "nfz", "figure"]))
+
+
+def add_maps(sub) -> None:
+    p = sub.add_parser("maps", help="draw maps as the paper's colour figure and list cell counts")
+    p.add_argument("maps", nargs="*", help="bundled names or PNG paths (default: all bundled)")
+    p.add_argument("--out", help="folder for the figures (default: out/maps) or --generate's maps")
+
+    add_generate_options(p)
+    p.set_defaults(func=cmd_maps)

@@ -1,0 +1,191 @@
+"""The options and checks every subcommand shares: numbers with bounds, output folders and files,
+progress bars, the weather, the workers, the exact planner's solver, an agent file.
+
+Each ``add_*(parser)`` adds its options; each check raises ``ValueError`` or
+``argparse.ArgumentTypeError`` with one line saying what to give instead. Nothing numerical is
+imported here, so building the parser stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+# the reference planners (cpp_mujoco.planners.PLANNERS, named here for the parser; a test keeps
+# them equal); evaluate flies the first three when no policy is named — the wind planners price
+# moves with the observed wind and are asked for by name
+PLANNER_NAMES = (
+    "random", "safe-greedy", "beam-search", "safe-greedy-wind", "beam-search-wind", "optimal",
+)  # fmt: skip
+
+DEFAULT_PLANNERS = PLANNER_NAMES[:3]
+# Dryden turbulence levels (MIL-F-8785C), the same as physics.air.turbulence.LEVELS; named
+# here so that building the parser imports no numerical module (a test keeps them equal)
+TURBULENCE_LEVELS = ("none", "light", "moderate", "severe")
+TRAIN_HELP = "train the DDQN agent on a map"
+TRAIN_GENERAL_HELP = "train one DDQN agent for any map on generated maps"
+DEFAULT_CACHE = "results/optimum"  # the committed cache of the bundled maps' protocol
+
+
+def int_at_least(low: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
+        return value
+
+    parse.__name__ = f"integer >= {low}"
+    return parse
+
+
+def out_dir(path: str) -> Path:
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OSError(f"cannot create output folder {out}: {e.strerror}") from e
+    return out
+
+
+def progress_wanted(args) -> bool:
+    """Bars only for a person watching: stderr is a terminal and --no-progress is not given."""
+    return not getattr(args, "no_progress", False) and sys.stderr.isatty()
+
+
+def check_output_file(option: str, path: str | None, suffix: str) -> None:
+    """An output file option pointing at a folder fails now, not after the mission flew."""
+    if path and Path(path).is_dir():
+        example = Path(path) / f"out{suffix}"
+        raise ValueError(f"{option} {path} is a folder; give a file name such as {example}")
+
+
+def check_agent_file(spec: str) -> None:
+    path = Path(spec)
+    if path.is_dir():
+        hint = next(
+            (f" such as {p}" for p in (path / "best.pt", path / "agent.pt") if p.is_file()), ""
+        )
+        raise ValueError(f"--agent {spec} is a folder; give a checkpoint file{hint}")
+
+
+def load_agent_for(spec: str, grid_map):
+    from cpp_mujoco.agent import load_agent
+
+    check_agent_file(spec)
+    agent = load_agent(spec)
+    shape = getattr(agent, "map_shape", grid_map.shape)
+    if shape is not None and tuple(shape) != grid_map.shape:  # None: a general agent, any size
+        raise ValueError(
+            f"agent {spec!r} was trained on {shape[0]}x{shape[1]} maps; map {grid_map.label!r} "
+            f"is {grid_map.shape[0]}x{grid_map.shape[1]}"
+        )
+    return agent
+
+
+def add_progress_option(p) -> None:
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bars (they are shown only when stderr is a terminal)",
+    )
+
+
+def add_wind_options(p) -> None:
+    p.add_argument(
+        "--wind-speed", type=float, default=0.0, help="mujoco: steady wind, m/s (default: 0)"
+    )
+    p.add_argument(
+        "--wind-direction",
+        type=float,
+        default=0.0,
+        help="mujoco: where the wind blows from, degrees clockwise from north (default: 0)",
+    )
+    p.add_argument(
+        "--gust-std", type=float, default=0.0, help="mujoco: gust strength, m/s (default: 0)"
+    )
+    p.add_argument(
+        "--turbulence", default="none", choices=TURBULENCE_LEVELS,
+        help="mujoco: Dryden turbulence (MIL-F-8785C) on top of the wind; docs/turbulence.md "
+        "(default: %(default)s)",
+    )  # fmt: skip
+
+
+_WEATHER_DEFAULTS = {
+    "wind_speed": 0.0,
+    "wind_direction": 0.0,
+    "gust_std": 0.0,
+    "turbulence": "none",
+}
+
+
+def weather_options(args) -> dict:
+    """The weather options as ``MuJoCo-v0`` keyword arguments (so results record them); on the
+    grid, where there is no weather, a weather option is an error rather than silently ignored."""
+    weather = {k: getattr(args, k) for k in _WEATHER_DEFAULTS}
+    if args.backend != "mujoco":
+        given = [k for k, v in weather.items() if v != _WEATHER_DEFAULTS[k]]
+        if given:
+            flags = ", ".join("--" + k.replace("_", "-") for k in given)
+            raise ValueError(f"{flags}: weather needs --backend mujoco (the grid has none)")
+        return {}
+    return weather
+
+
+def add_workers_option(p) -> None:
+    p.add_argument(
+        "--workers", type=int_at_least(1), default=None,
+        help="MuJoCo worker processes (default: all cores)",
+    )  # fmt: skip
+
+
+def positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
+    return value
+
+
+def add_solver_options(p) -> None:
+    from cpp_mujoco.planners.optimal_solver import SOLVERS
+
+    p.add_argument(
+        "--time-limit", type=positive_seconds, default=60.0, metavar="S",
+        help="the exact planner's solver time per episode; a mission not proven by then is "
+        "kept and labelled so (default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--solver-workers", type=int_at_least(1), default=1,
+        help="the solver's threads per episode (default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--solver", choices=SOLVERS, default=SOLVERS[0],
+        help="the exact planner's solver: HiGHS (branch and cut) or OR-Tools CP-SAT "
+        "(default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--jobs", type=int_at_least(1), default=1,
+        help="episodes solved at once, one process each (default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--optimum", default=DEFAULT_CACHE, metavar="DIR",
+        help="the solved episodes' cache, one JSON file per map digest: read, and written by "
+        "what is solved (default: %(default)s)",
+    )  # fmt: skip
+
+
+def optimal_options(args) -> dict:
+    """``make_planner("optimal", optimal=...)``'s keyword arguments from the command line."""
+    from cpp_mujoco.planners.optimal_solver import SolverOptions
+
+    options = SolverOptions(
+        time_limit_s=args.time_limit, workers=args.solver_workers, solver=args.solver
+    )
+    return {"options": options, "cache_folder": args.optimum, "jobs": args.jobs}

@@ -1,0 +1,250 @@
+"""The paper's protocol over a map set: how well a policy does on maps it has never seen.
+
+Each map is flown with the protocol of :func:`~cpp_mujoco.protocol.evaluate.evaluate` (every
+landing cell
+× every budget of the set's size class, :func:`~cpp_mujoco.map_sets.size_classes.budget_range`) on
+the
+grid or in MuJoCo. A set's figure for a policy is the mean over its maps of the per-map ratios,
+so every map counts the same whatever its landing zone's size; the ratios pooled over all
+episodes are recorded beside it. The JSON names the set (name, version, how many of its maps),
+every map (name, seed, digest), the policy, backend and budgets, so no number is ambiguous. Each
+row also keeps one example episode (the map's first landing cell, the middle budget: its cells,
+coverage, landing), so the figures (:mod:`cpp_mujoco.review.map_set_figures`) can show what a
+policy did on a map from the JSON alone, without flying it again.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cpp_mujoco.grid.wind import GridWind
+from cpp_mujoco.map_sets.sets import MapSetSpec
+from cpp_mujoco.map_sets.size_classes import size_config
+from cpp_mujoco.maps import GridMap
+from cpp_mujoco.protocol.evaluate import (
+    EvaluationResult,
+    evaluate,
+    protocol_budgets,
+    split_conditions,
+)
+from cpp_mujoco.util.io import atomic_write_text, json_default, json_plain
+
+_NUMBERS = ("episodes", "landing_ratio", "coverage_ratio", "mean_return", "mean_steps")
+
+
+@dataclass
+class MapSetResult:
+    """Per-map, per-policy protocol figures over (the first ``len(maps)`` maps of) a set."""
+
+    spec: MapSetSpec
+    maps: list[GridMap]
+    budgets: list[int]
+    budget_step: int
+    rows: list[dict] = field(default_factory=list)  # one per map and policy
+    backend: str = "grid"
+
+    @property
+    def policies(self) -> list[str]:
+        return list(dict.fromkeys(r["policy"] for r in self.rows))
+
+    def summary(self) -> list[dict]:
+        """One row per policy: the means over the maps, the pooled ratios, the wall time."""
+        out = []
+        for name in self.policies:
+            rows = [r for r in self.rows if r["policy"] == name]
+            episodes = np.array([r["episodes"] for r in rows])
+            landing = np.array([r["landing_ratio"] for r in rows])
+            coverage = np.array([r["coverage_ratio"] for r in rows])
+            out.append(
+                {
+                    "policy": name,
+                    "maps": len(rows),
+                    "episodes": int(episodes.sum()),
+                    "mean_landing_ratio": float(landing.mean()),
+                    "mean_coverage_ratio": float(coverage.mean()),
+                    "min_landing_ratio": float(landing.min()),
+                    "pooled_landing_ratio": float((landing * episodes).sum() / episodes.sum()),
+                    "pooled_coverage_ratio": float((coverage * episodes).sum() / episodes.sum()),
+                    "seconds": float(sum(r["seconds"] for r in rows)),
+                }
+            )
+        return out
+
+    def to_dict(self) -> dict:
+        """The set, the budgets, the conditions every row shares once, the per-policy means, and
+        the rows (map name, seed, digest, policy, numbers, and their own conditions)."""
+        shared, own = split_conditions([json_plain(r["conditions"]) for r in self.rows])
+        rows = []
+        for row, conditions in zip(self.rows, own, strict=True):
+            entry = json_plain({k: v for k, v in row.items() if k != "conditions"})
+            if conditions:
+                entry["conditions"] = conditions
+            rows.append(entry)
+        return {
+            "map_set": self.spec.identity(len(self.maps)),
+            "backend": self.backend,
+            "budgets": {"min": self.budgets[0], "max": self.budgets[-1], "step": self.budget_step},
+            "mean_is": "the mean over the maps of each map's ratio (every map weighs the same)",
+            "example_episode": {
+                "start": "each map's first landing cell (row-major order)",
+                "budget": example_budget(self.budgets),
+            },
+            "policies": self.summary(),
+            "conditions": shared,
+            "rows": rows,
+        }
+
+    def to_json(self, path: str | Path) -> Path:
+        atomic_write_text(path, json.dumps(self.to_dict(), indent=2, default=json_default))
+        return Path(path)
+
+    def tables(self) -> tuple[str, str]:
+        """(per map: each policy's landing and coverage; per policy: the means over the set)."""
+        from cpp_mujoco.util.tables import format_table
+
+        names = self.policies
+        per_map: dict[str, dict] = {}
+        for r in self.rows:
+            row = per_map.setdefault(
+                r["map"], {"map": r["map"], "digest": r["map_digest"], "landing cells": 0}
+            )
+            row["landing cells"] = r["landing_cells"]
+            row[f"{r['policy']} landing"] = f"{r['landing_ratio']:.2%}"
+            row[f"{r['policy']} coverage"] = f"{r['coverage_ratio']:.2%}"
+        mean = {"map": f"mean of {len(self.maps)}", "digest": "", "landing cells": ""}
+        for s in self.summary():
+            mean[f"{s['policy']} landing"] = f"{s['mean_landing_ratio']:.2%}"
+            mean[f"{s['policy']} coverage"] = f"{s['mean_coverage_ratio']:.2%}"
+        columns = ["map", "digest", "landing cells"]
+        columns += [f"{n} {what}" for n in names for what in ("landing", "coverage")]
+        means = [
+            {
+                "policy": s["policy"],
+                "maps": s["maps"],
+                "episodes": s["episodes"],
+                "mean landing": f"{s['mean_landing_ratio']:.2%}",
+                "mean coverage": f"{s['mean_coverage_ratio']:.2%}",
+                "worst map landing": f"{s['min_landing_ratio']:.2%}",
+                "seconds": f"{s['seconds']:.1f}",
+            }
+            for s in self.summary()
+        ]
+        mean_columns = ["policy", "maps", "episodes", "mean landing", "mean coverage"]
+        return (
+            format_table([*per_map.values(), mean], columns),
+            format_table(means, [*mean_columns, "worst map landing", "seconds"]),
+        )
+
+
+def example_budget(budgets: Sequence[int]) -> int:
+    """The budget of the rows' example episodes: the middle one of those flown."""
+    return int(budgets[len(budgets) // 2])
+
+
+def example_episode(result: EvaluationResult, budget: int) -> dict:
+    """The episode from the map's first landing cell at ``budget``: what a figure draws."""
+    start = result.starts[0]
+    sel = np.flatnonzero((result.budgets == budget) & (result.starts == start).all(axis=1))
+    if sel.size == 0:
+        raise ValueError(f"no episode from {tuple(start)} with budget {budget}")
+    i = int(sel[0])
+    cells = result.trajectories[i]
+    return {
+        "start": [int(start[0]), int(start[1])],
+        "budget": int(budget),
+        "cells": cells[cells >= 0].tolist(),
+        "landed": bool(result.landed[i]),
+        "coverage_ratio": float(result.coverage[i]),
+        "steps": int(result.steps[i]),
+    }
+
+
+def check_physics(spec: MapSetSpec, grid_map: GridMap, env_kwargs: dict | None = None) -> None:
+    """Build the MuJoCo env of the set's first map before anything flies, so a set the physics
+    cannot hold (or a bad weather option) fails at once, naming the set and its size."""
+    from cpp_mujoco.protocol.physics_tasks import make_env
+
+    try:
+        env = make_env(grid_map, {**(env_kwargs or {}), "grid_config": size_config(spec.size)})
+    except ValueError as e:
+        text = " ".join(str(e).split())
+        raise ValueError(
+            f"map set {spec.name!r} ({spec.size}x{spec.size}) cannot be flown in MuJoCo: "
+            f"map {grid_map.label}: {text}"
+        ) from e
+    env.close()
+
+
+def evaluate_map_set(
+    spec: MapSetSpec,
+    maps: Sequence[GridMap],
+    policies: Sequence[tuple[str, Any]],
+    budget_step: int = 1,
+    progress: bool = False,
+    backend: str = "grid",
+    *,
+    workers: int | None = None,
+    env_kwargs: dict | None = None,
+    engine: str = "local",
+    grid_wind: GridWind | None = None,
+) -> MapSetResult:
+    """Every policy over every map of the set on ``backend``, with the set's size-class budgets
+    (every ``budget_step``-th, the maximum always included). ``workers``, ``env_kwargs``
+    (weather) and ``engine`` are :func:`~cpp_mujoco.protocol.evaluate.evaluate`'s, for MuJoCo;
+    ``grid_wind``: on the grid, the wind option every episode draws its wind from (each row's
+    conditions record it)."""
+    from tqdm import tqdm
+
+    if not maps:
+        raise ValueError(f"map set {spec.name!r}: no maps to evaluate")
+    if len(maps) > spec.count:
+        raise ValueError(f"map set {spec.name!r} has {spec.count} maps, got {len(maps)}")
+    for grid_map, digest in zip(maps, spec.digests, strict=False):
+        if grid_map.digest != digest:  # rows name each map by the set's seed: they must match
+            raise ValueError(f"map {grid_map.label!r} is not the next map of set {spec.name!r}")
+    physics: dict[str, Any] = {}
+    if backend == "mujoco":
+        check_physics(spec, maps[0], env_kwargs)
+        physics = {"workers": workers, "env_kwargs": env_kwargs, "engine": engine}
+    config = size_config(spec.size)
+    if grid_wind is not None:
+        if backend != "grid":
+            raise ValueError("grid_wind is the grid's wind option; MuJoCo flies env_kwargs' wind")
+        config = replace(config, wind=grid_wind)
+    budgets = protocol_budgets(config, step=budget_step)
+    middle = example_budget(budgets)
+    result = MapSetResult(spec, list(maps), budgets, budget_step, backend=backend)
+    total = len(maps) * len(policies)
+    with tqdm(total=total, desc=spec.name, unit="run", disable=not progress) as bar:
+        for name, policy in policies:
+            for grid_map, seed in zip(maps, spec.seeds, strict=False):
+                start = time.perf_counter()
+                r = evaluate(
+                    policy, grid_map, backend=backend, budgets=budgets, config=config,
+                    policy_name=name, **physics,
+                )  # fmt: skip
+                seconds = time.perf_counter() - start
+                summary = r.summary()
+                result.rows.append(
+                    {
+                        "map": grid_map.label,
+                        "seed": seed,
+                        "map_digest": grid_map.digest,
+                        "landing_cells": int(grid_map.landing.sum()),
+                        "policy": name,
+                        "backend": r.backend,
+                        **{k: summary[k] for k in _NUMBERS},
+                        "seconds": seconds,
+                        "example": example_episode(r, middle),
+                        "conditions": r.conditions,
+                    }
+                )
+                bar.update()
+    return result
