@@ -20,6 +20,7 @@ from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.agent.revisit_mask import REVISIT_RULE, RevisitMemory
+from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.return_rule import RETURN_RULE
 from cpp_mujoco.grid.symmetry import SYMMETRIC_Q_RULE, symmetric_q_values
 from cpp_mujoco.grid.way_home import ReturnMargin
@@ -77,9 +78,15 @@ class GreedyAgent:
             return None
         return self.network.height, self.network.width
 
-    def q_values(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+    def q_values(self, obs: dict[str, np.ndarray], rows: np.ndarray | None = None) -> np.ndarray:
         """Q-values (N, 5) for a batch of observations; with ``symmetric_q`` their mean over
-        the map's images (:func:`~cpp_mujoco.grid.symmetry.symmetric_q_values`)."""
+        the map's images (:func:`~cpp_mujoco.grid.symmetry.symmetric_q_values`). ``rows``: only
+        those rows are read (the others are 0): a row's Q-values do not depend on its batch."""
+        if rows is not None:
+            part = {k: _rows(k, v, 0, None, rows) for k, v in obs.items()}
+            q = np.zeros((int(np.shape(obs["coverage"])[0]), NUM_ACTIONS), dtype=np.float32)
+            q[rows] = self.q_values(part)
+            return q
         if self.symmetric_q:
             return symmetric_q_values(self.network_q_values, obs)
         return self.network_q_values(obs)
@@ -134,9 +141,15 @@ class GreedyAgent:
 
     def act(self, obs: dict[str, np.ndarray]):
         single = np.ndim(obs["coverage"]) == 2
-        if single:
-            obs = as_batch(obs)
-        q = torch.from_numpy(self.q_values(obs))
+        actions = self.act_active(as_batch(obs) if single else obs, None)
+        return int(actions[0]) if single else actions
+
+    def act_active(self, obs: dict[str, np.ndarray], active: np.ndarray | None) -> np.ndarray:
+        """The actions of a batch; only the rows ``active`` marks are read by the network (the
+        episode loops give the others a landing their env ignores), every row by the rules, so
+        a rule's memory sees each step of its episode as :meth:`act` would."""
+        rows = None if active is None or np.all(active) else np.flatnonzero(active)
+        q = torch.from_numpy(self.q_values(obs, rows))
         allowed = None
         if self.return_mask:
             wind = obs.get("wind")
@@ -153,8 +166,7 @@ class GreedyAgent:
                 allowed = finish_allowed(obs, allowed, wider=before_revisit)
         if allowed is not None:
             q = mask_unsafe(q, torch.from_numpy(allowed))
-        actions = q.argmax(dim=1).numpy()
-        return int(actions[0]) if single else actions
+        return q.argmax(dim=1).numpy()
 
     __call__ = act
 
@@ -174,7 +186,10 @@ class GreedyAgent:
         return np.asarray(self.act(observation)), None
 
 
-def _rows(key: str, value, lo: int, hi: int) -> np.ndarray:
-    """Rows lo:hi of a batched array; a map shared by the batch ((3, H, W)) stays whole."""
+def _rows(key: str, value, lo: int, hi: int | None, rows: np.ndarray | None = None) -> np.ndarray:
+    """Rows lo:hi (or ``rows``) of a batched array; a map shared by the batch ((3, H, W)) stays
+    whole."""
     value = np.asarray(value)
-    return value if key == "map" and value.ndim == 3 else value[lo:hi]
+    if key == "map" and value.ndim == 3:
+        return value
+    return value[rows] if rows is not None else value[lo:hi]

@@ -25,7 +25,7 @@ import numpy as np
 
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.mdp import GridMDP, StepOutcome
-from cpp_mujoco.protocol.policy import Observation, act_one, start_episodes
+from cpp_mujoco.protocol.policy import Observation, act_batch, act_one, start_episodes
 
 # run_episode's hooks: on_start(obs, info) after the reset; on_step(action, obs, reward, info)
 OnStart = Callable[[Observation, dict], None]
@@ -92,7 +92,7 @@ def run_batch(
     while not mdp.done.all():
         active = ~mdp.done
         obs = mdp.observation()
-        actions = np.asarray(policy.act(obs), dtype=np.int64).reshape(-1)
+        actions = np.asarray(act_batch(policy, obs, active), dtype=np.int64).reshape(-1)
         if actions.shape != active.shape:  # never broadcast one action over the batch
             raise ValueError(f"policy gave {actions.size} actions for {active.size} episodes")
         actions = np.where(active, actions, LAND)
@@ -118,7 +118,7 @@ def run_vector_episodes(
     ]
     done = np.zeros(n, dtype=bool)
     while not done.all():
-        actions = np.asarray(policy.act(obs), dtype=np.int64).reshape(-1)
+        actions = np.asarray(act_batch(policy, obs, ~done), dtype=np.int64).reshape(-1)
         if actions.shape != (n,):  # never broadcast one action over the batch
             raise ValueError(f"policy gave {actions.size} actions for {n} episodes")
         actions = np.where(done, LAND, actions)  # the env ignores finished episodes

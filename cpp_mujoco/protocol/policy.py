@@ -43,6 +43,16 @@ def start_episodes(policy: Any, num_episodes: int, seed: int | None = None) -> N
         reset(int(num_episodes), seed)
 
 
+def act_batch(policy: Any, obs: Observation, active: np.ndarray) -> np.ndarray:
+    """The actions of ``policy`` for a batch whose rows ``active`` marks are still flying.
+
+    A policy may offer ``act_active(obs, active)``: the same actions as ``act`` for the active
+    rows, anything for the others (the loops give them a landing their env ignores) — a
+    network reads only the active rows. Without it, ``act``."""
+    act_active = getattr(policy, "act_active", None)
+    return act_active(obs, active) if callable(act_active) else policy.act(obs)
+
+
 def as_batch(obs: Observation) -> Observation:
     """One env's observation as a batch of one (leading dimension 1): what ``act`` takes."""
     return {k: np.asarray(v)[None] for k, v in obs.items()}
