@@ -88,7 +88,8 @@ def test_decorate_appends_after_the_model_geoms(model):
 
 
 def test_frames_show_the_tiles_and_the_chase_camera_draws_them_by_default(gl):
-    from cpp_mujoco.physics.view.rendering import OffscreenCamera, chase_camera
+    from cpp_mujoco.physics.view.chase import chase_camera
+    from cpp_mujoco.physics.view.rendering import OffscreenCamera
 
     grid_map, config = load_map("A"), PhysicsConfig()
     model = compile_arena(build_arena(grid_map, config))
