@@ -6,7 +6,7 @@ validation-range maps, for the agent with and without the finish mask and for th
 Why: a mean over every budget hides where a gap lies. On 32 validation-range 16×16 maps the
 general agent led safe greedy at small budgets and fell behind at large ones, where it landed
 with budget and reachable targets left — the finding behind the finish mask
-(``cpp_mujoco/agent/finish_mask.py``). Validation seeds only: the held-out sets stay the test.
+(``cpp_mujoco/agent/rules/finish_mask.py``). Validation seeds only: the held-out sets stay the test.
 Grid backend, every landing cell × every ``--budget-step``-th budget of the size class.
 """
 
@@ -47,8 +47,8 @@ def main(argv=None) -> int:
     check_seeds(args.first_seed, args.maps, "validation", VALIDATION_SEEDS)
     pool = MapPool.generate((args.size,), args.maps, args.first_seed)
     columns = {"safe-greedy": make_planner("safe-greedy")}
-    for finish in (False, True):
-        label, agent = agent_entry(args.agent, load_agent(args.agent), None, finish)
+    for change in ("no-finish-mask", "+finish-mask"):
+        label, agent = agent_entry(args.agent, load_agent(args.agent), [change])
         columns[label] = agent
     digest = agent.metadata.get("digest")
     tables = {label: per_budget_coverage(pol, pool, args.budget_step)

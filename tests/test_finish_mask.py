@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from cpp_mujoco.agent import load_agent
-from cpp_mujoco.agent.finish_mask import FINISH_RULE, finish_allowed, targets_in_reach
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.map_pool import MapPool
+from cpp_mujoco.agent.rules.finish_mask import FINISH_RULE, finish_allowed, targets_in_reach
 from cpp_mujoco.cli.maps import agent_entry
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.planners.safe_greedy import SafeGreedyPlanner
@@ -98,10 +98,10 @@ def test_an_episode_with_it_covers_at_least_as_much_and_still_lands(general):
     pool = MapPool.generate((16,), 1, 2_000_107)
     grid_map, config = pool.maps[0], pool.configs[0]
     budgets = [50, 75]
-    _, plain_agent = agent_entry("general", general, None, finish_mask=False)
+    _, plain_agent = agent_entry("general", general, ["no-finish-mask"])
     plain = evaluate(plain_agent, grid_map, budgets=budgets, config=config)
-    general.finish_mask = True
     masked = evaluate(general, grid_map, budgets=budgets, config=config)
+    assert general.finish_mask and not plain_agent.finish_mask
     assert masked.landing_ratio == plain.landing_ratio == 1.0
     np.testing.assert_array_equal(masked.budgets, plain.budgets)
     assert (masked.coverage >= plain.coverage - 1e-12).all()
@@ -116,5 +116,6 @@ def test_configs_and_files_name_it(general):
     assert not GeneralTrainConfig.from_dict({}).finish_mask  # runs from before the option
     assert general.metadata["finish_mask"] and general.finish_mask
     assert not load_agent("A").finish_mask  # the paper's per-map agents fly without it
-    label, _ = agent_entry("general", load_agent("general"), None, finish_mask=False)
-    assert label == "ddqn[general, no finish mask]"
+    label, _ = agent_entry("general", load_agent("general"), ["no-finish-mask"])
+    assert label == "ddqn[general, rules: return-mask+revisit-mask]"
+    assert agent_entry("general", load_agent("general"), ["+finish-mask"])[0] == "ddqn[general]"

@@ -19,6 +19,7 @@ from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.map_pool import MapPool, padded_cell
 from cpp_mujoco.agent.network import observation_to_tensors
 from cpp_mujoco.agent.policy import GreedyAgent
+from cpp_mujoco.agent.rules import ReturnMask
 from cpp_mujoco.grid.graph import REJECTED_AFTER, build_graph
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.grid.return_rule import paid_actions, wind_allowance
@@ -143,7 +144,7 @@ def test_an_untrained_masked_network_lands_in_strong_wind_where_unit_costs_crash
     grid_map, config = generate_from_seed(2_000_017, 16), size_config(16)
     budgets = protocol_budgets(config, 10)
     windy = replace(config, wind=_steady(12.0))
-    masked = evaluate(GreedyAgent(net, 150.0, return_mask=True), grid_map, budgets=budgets,
+    masked = evaluate(GreedyAgent(net, 150.0, rules=[ReturnMask()]), grid_map, budgets=budgets,
                       config=windy)  # fmt: skip
     calm_rule = evaluate(make_planner("safe-greedy"), grid_map, budgets=budgets, config=windy)
     # measured: 0.986 (one gust tail in 72 episodes) against the calm planner's 0.069

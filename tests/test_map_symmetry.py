@@ -9,6 +9,7 @@ import torch
 
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.policy import GreedyAgent
+from cpp_mujoco.agent.rules import SymmetricQ
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.grid.symmetry import action_permutation, symmetric_q_values, turn_observation
@@ -101,15 +102,15 @@ def _observations(grid_map: GridMap, n: int = 6) -> dict[str, np.ndarray]:
 def test_symmetric_q_values_are_the_same_on_every_image_of_a_state():
     torch.manual_seed(0)
     network = GeneralQNetwork(home_input=True, target_input=True)
-    agent = GreedyAgent(network, 75.0, symmetric_q=True)
+    agent = GreedyAgent(network, 75.0, rules=[SymmetricQ()])
     plain = GreedyAgent(network, 75.0)
     obs = _observations(load_map("C"))
-    q = agent.q_values(obs)
+    q = symmetric_q_values(agent.q_values, obs)
     assert not np.allclose(q, plain.q_values(obs), atol=1e-4)  # a random network is not symmetric
     for symmetry in SYMMETRIES:
-        image_q = agent.q_values(turn_observation(obs, symmetry))
+        image_q = symmetric_q_values(agent.q_values, turn_observation(obs, symmetry))
         np.testing.assert_allclose(image_q[:, action_permutation(symmetry)], q, atol=1e-5)
-    np.testing.assert_allclose(symmetric_q_values(plain.q_values, obs), q, atol=1e-6)
+    np.testing.assert_array_equal(agent.act(obs), q.argmax(axis=1))  # the rule acts on the mean
     assert "d4-mean" in policy_identity(agent)["symmetric_q"]
     assert "symmetric_q" not in policy_identity(plain)
 
@@ -153,10 +154,10 @@ def test_evaluate_flies_an_agent_with_symmetric_q_and_names_it(tmp_path, capsys)
     from cpp_mujoco.cli.main import main
 
     args = ["evaluate", "--map", "B~rot90", "--agent", "B", "--budget-step", "25"]
-    assert main([*args, "--symmetric-q", "--out", str(tmp_path)]) == 0
+    assert main([*args, "--rule", "+symmetric-q", "--out", str(tmp_path)]) == 0
     assert main([*args, "--out", str(tmp_path)]) == 0
     files = sorted(p.name for p in tmp_path.glob("*ddqn*.json"))
-    assert files == ["grid_B_rot90_ddqn_B.json", "grid_B_rot90_ddqn_B_symmetric_Q.json"]
+    assert files == ["grid_B_rot90_ddqn_B.json", "grid_B_rot90_ddqn_B_rules_symmetric-q.json"]
     data = {name: json.loads((tmp_path / name).read_text()) for name in files}
     symmetric = [d for d in data.values() if "symmetric" in str(d["policy"])]
     assert len(symmetric) == 1 and "d4-mean" in json.dumps(symmetric[0])

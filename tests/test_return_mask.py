@@ -16,6 +16,7 @@ from cpp_mujoco.agent.general_train import GeneralTrainer, initial_general_weigh
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.map_pool import MapPool, padded_cell
 from cpp_mujoco.agent.policy import GreedyAgent
+from cpp_mujoco.agent.rules import ReturnMask
 from cpp_mujoco.grid.actions import LAND, MOVES
 from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.grid.mdp import GridMDP
@@ -168,7 +169,7 @@ def test_a_masked_policy_lands_every_episode_even_untrained(size):
     budgets = protocol_budgets(config, {16: 10, 32: 20}[size])  # six spanning the size class
     free = evaluate(GreedyAgent(net, 150.0), grid_map, budgets=budgets, config=config)
     masked = evaluate(
-        GreedyAgent(net, 150.0, return_mask=True), grid_map, budgets=budgets, config=config
+        GreedyAgent(net, 150.0, rules=[ReturnMask()]), grid_map, budgets=budgets, config=config
     )
     assert masked.landing_ratio == 1.0
     assert free.landing_ratio < 0.5  # the untrained network alone strands the UAV
@@ -210,7 +211,8 @@ def test_agent_files_carry_the_mask_and_old_ones_fly_without(masked_run, tmp_pat
     agent = load_agent(out / "agent.pt")
     assert agent.return_mask and agent.metadata["return_mask"]
     state = load_checkpoint(out / "agent.pt")
-    del state["config"]["return_mask"]  # an agent from before the option
+    assert state["rules"][0] == "return-mask"  # the file names its rules
+    del state["config"]["return_mask"], state["rules"]  # an agent from before the option
     atomic_save(state, tmp_path / "old.pt")
     assert not load_agent(tmp_path / "old.pt").return_mask
     assert not load_agent("A").return_mask  # the paper's agents

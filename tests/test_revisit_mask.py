@@ -6,7 +6,7 @@ import pytest
 
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
-from cpp_mujoco.agent.revisit_mask import REVISIT_RULE, RevisitMemory
+from cpp_mujoco.agent.rules.revisit_mask import REVISIT_RULE, RevisitMemory
 from cpp_mujoco.grid.actions import WEST
 from cpp_mujoco.grid.env import GridEnv
 from cpp_mujoco.map_sets.sets import load_map_set
@@ -89,11 +89,8 @@ def test_it_ends_the_cycles_of_a_held_out_map(general):
     grid_map = load_map_set("heldout16-v1", 35)[34]
     config = size_config(16)
     budgets = protocol_budgets(config, 10)
-    general.revisit_mask = False
-    try:
-        plain = evaluate(general, grid_map, budgets=budgets, config=config)
-    finally:
-        general.revisit_mask = True
+    plain_agent = general.with_rules([r for r in general.rule_names if r != "revisit-mask"])
+    plain = evaluate(plain_agent, grid_map, budgets=budgets, config=config)
     masked = evaluate(general, grid_map, budgets=budgets, config=config)
     cycles = [sum(longest_cycle_run(t) >= 10 for t in r.trajectories) for r in (plain, masked)]
     assert masked.landing_ratio == plain.landing_ratio == 1.0

@@ -17,6 +17,7 @@ from cpp_mujoco.agent.checkpoint import CheckpointError, load_checkpoint, networ
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import QNetwork
 from cpp_mujoco.agent.policy import GreedyAgent, MapSizeError
+from cpp_mujoco.agent.rules import RULE_FLAGS, make_rules, rule_names_of
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.util.io import resolve_named_file
 
@@ -50,11 +51,12 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
     )
     obj = load_checkpoint(where.path)
     net = network_from_checkpoint(obj, str(where.path))
-    # an agent trained with the return mask acts with it; files from before the option had none
-    return_mask = bool((obj.get("config") or {}).get("return_mask", False))
-    revisit_mask = bool((obj.get("config") or {}).get("revisit_mask", False))
-    symmetric_q = bool((obj.get("config") or {}).get("symmetric_q", False))
-    finish_mask = bool((obj.get("config") or {}).get("finish_mask", False))
+    # the rules it acts with: the file's list, or (files from before the list) its config's
+    # booleans; the return mask in wind keeps the margin of the wind planners it learned from
+    try:
+        names = rule_names_of(obj)
+    except ValueError as e:
+        raise CheckpointError(f"{where.path}: {e}") from None
     wind_margin = _wind_margin((obj.get("config") or {}).get("wind_planner_sigmas"), where.path)
     return GreedyAgent(
         net,
@@ -65,19 +67,13 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
             **{k: obj.get(k) for k in ("map", "config", "metrics")},
             **{k: obj[k] for k in ("train_maps", "validation_maps") if k in obj},  # general
             "architecture": obj.get("architecture", "paper"),
-            "return_mask": return_mask,
-            "revisit_mask": revisit_mask,
-            "symmetric_q": symmetric_q,
-            "finish_mask": finish_mask,
+            "rules": names,
+            **{flag: rule in names for flag, rule in RULE_FLAGS.items()},
             "source": str(where.path),
             "bundled": where.bundled,
             "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
         },
-        return_mask=return_mask,
-        wind_margin=wind_margin,
-        revisit_mask=revisit_mask,
-        symmetric_q=symmetric_q,
-        finish_mask=finish_mask,
+        rules=make_rules(names, wind_margin),
     )
 
 

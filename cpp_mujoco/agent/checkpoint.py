@@ -28,6 +28,7 @@ import math
 import os
 import pickle
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -214,12 +215,14 @@ def agent_payload(
     config: dict,
     metrics: dict | None = None,
     map_digest: str = "",
+    rules: Sequence[str] = (),
 ) -> dict:
     """The agent part of a checkpoint (everything ``load_agent`` needs; fp32 weights only).
 
     ``map_digest`` (:attr:`GridMap.digest`) fingerprints the training map's cells, so a resume
     on an edited map file of the same name is refused instead of silently continuing. A general
-    network's payload says so (``architecture``) and holds its shape's arguments.
+    network's payload says so (``architecture``) and holds its shape's arguments. ``rules``: the
+    names of the rules the agent acts with (:mod:`~cpp_mujoco.agent.rules`), in order.
     """
     general = {cls: name for name, (cls, _) in GENERAL_NETWORKS.items()}
     if type(network) in general:
@@ -244,6 +247,7 @@ def agent_payload(
         "map_digest": map_digest,
         "config": dict(config),
         "metrics": dict(metrics or {}),
+        "rules": list(rules),
     }
 
 

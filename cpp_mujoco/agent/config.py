@@ -282,6 +282,11 @@ class TrainConfig:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def rule_names(self) -> list[str]:
+        """The rules the trained agent acts with (:mod:`~cpp_mujoco.agent.rules`): the return
+        mask where it trained with it."""
+        return ["return-mask"] if self.return_mask else []
+
     @property
     def last_update(self) -> int:
         """The update the run ends at: ``stop_after_updates`` if set, else ``total_updates``."""

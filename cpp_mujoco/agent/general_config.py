@@ -82,12 +82,12 @@ class GeneralTrainConfig(TrainConfig):
     return_mask: bool = True
     # as a policy (validation, the final evaluation, the agent file), also leave out the moves
     # back into a cell flown through since the coverage last grew whose view shows no unseen
-    # target (:mod:`~cpp_mujoco.agent.revisit_mask`); training's exploration never uses it.
+    # target (:mod:`~cpp_mujoco.agent.rules.revisit_mask`); training's exploration never uses it.
     # A config stored before the option reads False (:meth:`from_dict`): its agent flew without
     revisit_mask: bool = True
     # as a policy, also do not land while a cell showing an unseen target can be reached and left
-    # for home (:mod:`~cpp_mujoco.agent.finish_mask`; the reward's movement penalty and discount
-    # make landing early pay); training never uses it. A config stored before reads False
+    # for home (:mod:`~cpp_mujoco.agent.rules.finish_mask`; the reward's movement penalty and
+    # discount make landing early pay); training never uses it. A config stored before reads False
     finish_mask: bool = True
     # global-local only: the network also reads, for each action, the moves from the cell it
     # leads to until the 3×3 view holds an unseen target (:mod:`~cpp_mujoco.agent.target_input`);
@@ -180,6 +180,13 @@ class GeneralTrainConfig(TrainConfig):
         ``finish_mask`` is from before them: its run had none of them."""
         old = dict.fromkeys(("home_input", "return_mask", "revisit_mask", "finish_mask"), False)
         return super().from_dict({**old, **data})
+
+    def rule_names(self) -> list[str]:
+        """The rules the trained agent acts with, in order: the return mask (also a rule of its
+        training), then the revisit and finish masks and symmetric Q (of the policy only)."""
+        flags = {"return-mask": self.return_mask, "revisit-mask": self.revisit_mask,
+                 "finish-mask": self.finish_mask, "symmetric-q": self.symmetric_q}  # fmt: skip
+        return [name for name, on in flags.items() if on]
 
     @property
     def input_budget_scale(self) -> float:

@@ -48,6 +48,7 @@ from cpp_mujoco.agent.map_pool import MapPool, MapwiseGuide
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay, record_pool_demonstrations
 from cpp_mujoco.agent.policy import GreedyAgent
+from cpp_mujoco.agent.rules import make_rules
 from cpp_mujoco.agent.target_input import widen_for_target_input
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.agent.train import Trainer
@@ -207,9 +208,7 @@ class GeneralTrainer(Trainer):
     def agent(self) -> GreedyAgent:
         return GreedyAgent(
             self.online, self.config.input_budget_scale, self.device, name="ddqn-general",
-            return_mask=self.config.return_mask, wind_margin=self.config.wind_margin,
-            revisit_mask=self.config.revisit_mask, symmetric_q=self.config.symmetric_q,
-            finish_mask=self.config.finish_mask,
+            rules=make_rules(self.config.rule_names(), self.config.wind_margin),
         )  # fmt: skip
 
     def evaluate(self, full: bool = False) -> ValidationResult:
@@ -250,6 +249,7 @@ class GeneralTrainer(Trainer):
             map_name="generated",
             config=self.config.to_dict(),
             metrics=metrics,
+            rules=self.config.rule_names(),
             map_digest=self.pool.digest,
         )
         payload["train_maps"] = self.pool.identity()

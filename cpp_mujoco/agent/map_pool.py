@@ -5,9 +5,10 @@ sizes, its count per size and its first seed, and a checkpoint can say exactly w
 trained on — plus the maps a user brings (:meth:`MapPool.with_named`: the paper's A, B, C or a
 site's PNG), recorded by name and digest. Three seed ranges never overlap: training draws below
 1,000,000, the held-out test sets own 1,000,000..1,999,999
-(:data:`~cpp_mujoco.map_sets.sets.HELDOUT_SEEDS`; a brought map that is one of theirs is refused) and
-validation (the maps ``best.pt`` is chosen on) owns :data:`VALIDATION_SEEDS` — choosing on the
-test maps, or validating on training maps, would make the reported numbers optimistic.
+(:data:`~cpp_mujoco.map_sets.sets.HELDOUT_SEEDS`; a brought map that is one of theirs is
+refused) and validation (the maps ``best.pt`` is chosen on) owns :data:`VALIDATION_SEEDS` —
+choosing on the test maps, or validating on training maps, would make the reported numbers
+optimistic.
 
 Maps of different sizes share a minibatch padded to the pool's largest side with no-fly cells
 (:func:`~cpp_mujoco.agent.general_network.pad_grids` says why that changes nothing for the

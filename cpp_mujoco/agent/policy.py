@@ -1,13 +1,14 @@
-"""A trained agent as a policy: greedy π(s) = argmax_a Q(s, a), for one observation or a batch;
-an agent trained with the return mask takes the argmax over the actions that keep its way home
-paid (:func:`~cpp_mujoco.agent.home_input.safe_actions`), as it was trained to; one flown with
-the revisit mask (:mod:`~cpp_mujoco.agent.revisit_mask`) also leaves out the moves back into a
-fruitless cell it has flown through, and keeps that memory per episode (``reset``); one flown
-with the finish mask (:mod:`~cpp_mujoco.agent.finish_mask`) does not land while an unseen target
-is still within reach."""
+"""A trained agent as a policy: greedy π(s) = argmax_a Q(s, a) among the actions its rules
+allow, for one observation or a batch.
+
+An agent is a network plus an ordered list of rules (:mod:`~cpp_mujoco.agent.rules`): the
+return mask (agents trained with it act only among the actions that keep the way home paid),
+the revisit and finish masks, symmetric Q. The agent file stores the list; results name it.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -15,14 +16,10 @@ import torch
 
 from cpp_mujoco.agent.ddqn import mask_unsafe
 from cpp_mujoco.agent.fcn_network import FCNQNetwork
-from cpp_mujoco.agent.finish_mask import FINISH_RULE, finish_allowed
 from cpp_mujoco.agent.general_network import GeneralQNetwork
-from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
-from cpp_mujoco.agent.revisit_mask import REVISIT_RULE, RevisitMemory
+from cpp_mujoco.agent.rules import ReturnMask, Rule, make_rules, rules_identity
 from cpp_mujoco.grid.actions import NUM_ACTIONS
-from cpp_mujoco.grid.return_rule import RETURN_RULE
-from cpp_mujoco.grid.symmetry import SYMMETRIC_Q_RULE, symmetric_q_values
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.protocol.policy import as_batch
 
@@ -35,14 +32,8 @@ class MapSizeError(ValueError):
 
 class GreedyAgent:
     """``act(obs)``: one observation dict (``coverage`` of shape (H, W)) → int; a batch (leading
-    dim N) → np.ndarray of N ints. ``network`` is the torch Q-network; ``return_mask``: act only
-    among the return rule's safe actions (agents trained with it), in an observed wind with
-    ``wind_margin`` (the margin of the wind planners it learned from; None: their default);
-    ``revisit_mask``: nor the moves back into a cell flown through since the coverage last grew
-    that shows no unseen target (:mod:`~cpp_mujoco.agent.revisit_mask`); ``finish_mask``: nor
-    the landing while a cell showing an unseen target can be reached and left for home
-    (:mod:`~cpp_mujoco.agent.finish_mask`); ``symmetric_q``: the
-    argmax of the Q-values averaged over the map's rotations and mirror images."""
+    dim N) → np.ndarray of N ints. ``network`` is the torch Q-network, ``rules`` what narrows
+    the actions it chooses among (:func:`~cpp_mujoco.agent.rules.make_rules`), in order."""
 
     def __init__(
         self,
@@ -51,23 +42,40 @@ class GreedyAgent:
         device: str | torch.device = "cpu",
         name: str = "ddqn",
         metadata: dict | None = None,
-        return_mask: bool = False,
-        wind_margin: ReturnMargin | None = None,
-        revisit_mask: bool = False,
-        symmetric_q: bool = False,
-        finish_mask: bool = False,
+        rules: Sequence[Rule] = (),
     ):
         self.network = network.to(device).eval()
-        self.return_mask = bool(return_mask)
-        self.wind_margin = wind_margin
-        self.revisit_mask = bool(revisit_mask)
-        self.symmetric_q = bool(symmetric_q)
-        self.finish_mask = bool(finish_mask)
-        self.memory = RevisitMemory()
+        self.rules = list(rules)
         self.budget_scale = float(budget_scale)
         self.device = torch.device(device)
         self.name = name
         self.metadata = dict(metadata or {})
+
+    @property
+    def rule_names(self) -> list[str]:
+        return [r.name for r in self.rules]
+
+    def with_rules(self, names: Sequence[str]) -> GreedyAgent:
+        """This agent's network flown with the rules ``names`` instead (the return mask keeps
+        its margin); the file's metadata is kept, results name the new rules."""
+        margin = self.wind_margin
+        return GreedyAgent(
+            self.network, self.budget_scale, self.device, self.name, self.metadata,
+            make_rules(names, margin),
+        )  # fmt: skip
+
+    def _has(self, name: str) -> bool:
+        return name in self.rule_names
+
+    return_mask = property(lambda self: self._has("return-mask"))
+    revisit_mask = property(lambda self: self._has("revisit-mask"))
+    finish_mask = property(lambda self: self._has("finish-mask"))
+    symmetric_q = property(lambda self: self._has("symmetric-q"))
+
+    @property
+    def wind_margin(self) -> ReturnMargin | None:
+        """The margin the return mask keeps in an observed wind (None: the wind planners')."""
+        return next((r.margin for r in self.rules if isinstance(r, ReturnMask)), None)
 
     @property
     def map_shape(self) -> tuple[int, int] | None:
@@ -79,16 +87,13 @@ class GreedyAgent:
         return self.network.height, self.network.width
 
     def q_values(self, obs: dict[str, np.ndarray], rows: np.ndarray | None = None) -> np.ndarray:
-        """Q-values (N, 5) for a batch of observations; with ``symmetric_q`` their mean over
-        the map's images (:func:`~cpp_mujoco.grid.symmetry.symmetric_q_values`). ``rows``: only
-        those rows are read (the others are 0): a row's Q-values do not depend on its batch."""
+        """The network's Q-values (N, 5) for a batch of observations. ``rows``: only those rows
+        are read (the others are 0): a row's Q-values do not depend on its batch."""
         if rows is not None:
             part = {k: _rows(k, v, 0, None, rows) for k, v in obs.items()}
             q = np.zeros((int(np.shape(obs["coverage"])[0]), NUM_ACTIONS), dtype=np.float32)
-            q[rows] = self.q_values(part)
+            q[rows] = self.network_q_values(part)
             return q
-        if self.symmetric_q:
-            return symmetric_q_values(self.network_q_values, obs)
         return self.network_q_values(obs)
 
     @torch.no_grad()
@@ -115,29 +120,17 @@ class GreedyAgent:
 
     def identity(self) -> dict[str, Any]:
         """What results record of this agent (:func:`~cpp_mujoco.protocol.policy.policy_identity`):
-        its network's inputs, and each rule it acts with by its versioned rule string."""
+        its network's inputs, and each of its rules by its versioned rule string."""
         out: dict[str, Any] = {}
         kwargs = getattr(self.network, "kwargs", None)
         if isinstance(kwargs, dict):  # its inputs too (moves home, moves to new targets, wind)
             out["network"] = dict(kwargs)
-        out["return_mask"] = self.return_mask
-        if self.return_mask:
-            out["return_rule"] = RETURN_RULE
-            if self.wind_margin is not None:  # what the rule keeps in wind
-                out["wind_margin"] = {k: float(v) for k, v in vars(self.wind_margin).items()}
-        out["revisit_mask"] = self.revisit_mask
-        if self.revisit_mask:
-            out["revisit_rule"] = REVISIT_RULE
-        out["finish_mask"] = self.finish_mask
-        if self.finish_mask:
-            out["finish_rule"] = FINISH_RULE
-        if self.symmetric_q:  # recorded only when on: results keep their keys
-            out["symmetric_q"] = SYMMETRIC_Q_RULE
-        return out
+        return {**out, **rules_identity(self.rules)}
 
     def reset(self, num_episodes: int, seed: int | None = None) -> None:
-        """Episode start: the revisit mask forgets the cells flown (the Q-values keep no state)."""
-        self.memory.reset()
+        """Episode start: the rules with a memory forget it (the Q-values keep no state)."""
+        for rule in self.rules:
+            rule.reset(num_episodes)
 
     def act(self, obs: dict[str, np.ndarray]):
         single = np.ndim(obs["coverage"]) == 2
@@ -149,24 +142,19 @@ class GreedyAgent:
         episode loops give the others a landing their env ignores), every row by the rules, so
         a rule's memory sees each step of its episode as :meth:`act` would."""
         rows = None if active is None or np.all(active) else np.flatnonzero(active)
+        if not self.rules:
+            return torch.from_numpy(self.q_values(obs, rows)).argmax(dim=1).numpy()
+        n = int(np.shape(obs["coverage"])[0])
+        allowed = floor = np.ones((n, NUM_ACTIONS), dtype=bool)
+        for rule in self.rules:
+            allowed = rule.allowed(obs, allowed, floor, lambda o: self.q_values(o, rows))
+            if rule.hard:
+                floor = allowed
+        live = allowed if rows is None else allowed[rows]
+        if (live.sum(axis=1) == 1).all():  # the rules chose (symmetric Q): no network read
+            return allowed.argmax(axis=1)
         q = torch.from_numpy(self.q_values(obs, rows))
-        allowed = None
-        if self.return_mask:
-            wind = obs.get("wind")
-            allowed = safe_actions(
-                obs["map"], obs["position"], obs["budget"], wind, self.wind_margin
-            )
-        if self.revisit_mask or self.finish_mask:
-            if allowed is None:
-                allowed = np.ones(tuple(q.shape), dtype=bool)
-            before_revisit = allowed
-            if self.revisit_mask:
-                allowed = self.memory.allowed(obs, allowed)
-            if self.finish_mask:
-                allowed = finish_allowed(obs, allowed, wider=before_revisit)
-        if allowed is not None:
-            q = mask_unsafe(q, torch.from_numpy(allowed))
-        return q.argmax(dim=1).numpy()
+        return mask_unsafe(q, torch.from_numpy(allowed)).argmax(dim=1).numpy()
 
     __call__ = act
 

@@ -40,6 +40,7 @@ from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors, scalar_inputs
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.replay import ReplayBuffer, concatenate_batches
+from cpp_mujoco.agent.rules import make_rules
 from cpp_mujoco.agent.run_folder import StopSignals, TrainingInterrupted
 from cpp_mujoco.agent.threads import ThreadTuner, set_threads
 from cpp_mujoco.agent.training_plot import write_training_log
@@ -212,7 +213,7 @@ class Trainer:
             self.config.input_budget_scale,
             self.device,
             name=f"ddqn-{self.grid_map.label}",
-            return_mask=self.config.return_mask,
+            rules=make_rules(self.config.rule_names()),
         )
 
     def evaluate(self, full: bool = False) -> EvaluationResult:
@@ -263,6 +264,7 @@ class Trainer:
             map_name=self.grid_map.label,
             config=self.config.to_dict(),
             metrics=metrics,
+            rules=self.config.rule_names(),
             map_digest=self.grid_map.digest,
         )
 

@@ -4,17 +4,17 @@ in the grid or in MuJoCo (locally or on Ray), into tables, figures and their JSO
 
 from __future__ import annotations
 
-import argparse
-
 from cpp_mujoco.cli.maps import add_map_set_options, agent_entry, cmd_evaluate_map_set
 from cpp_mujoco.cli.options import (
     DEFAULT_PLANNERS,
     PLANNER_NAMES,
     add_progress_option,
+    add_rule_option,
     add_solver_options,
     add_wind_options,
     add_workers_option,
     check_agent_file,
+    check_rules,
     int_at_least,
     optimal_options,
     out_dir,
@@ -48,6 +48,7 @@ def cmd_evaluate(args) -> None:
     from cpp_mujoco.protocol.evaluate import protocol_budgets
 
     weather = weather_options(args)  # checked before anything is loaded or written
+    check_rules(args)
     runtime = _ray_runtime(args)
     if args.grid_wind is not None and not args.map_set:
         raise ValueError(
@@ -66,9 +67,7 @@ def cmd_evaluate(args) -> None:
     if args.agent:
         from cpp_mujoco.agent import load_agent
 
-        policies += [
-            agent_entry(s, load_agent(s), args.symmetric_q, args.finish_mask) for s in args.agent
-        ]
+        policies += [agent_entry(s, load_agent(s), args.rule) for s in args.agent]
     out = out_dir(args.out)
     extra: dict = {"progress": progress_wanted(args)}
     extra["budgets"] = protocol_budgets(step=args.budget_step)
@@ -94,16 +93,7 @@ def add_evaluate(sub) -> None:
         "--agent", nargs="*", default=[],
         help="trained agents: a bundled agent name (A) or a checkpoint file",
     )  # fmt: skip
-    p.add_argument(
-        "--symmetric-q", action=argparse.BooleanOptionalAction, default=None,
-        help="agents act on Q-values averaged over the map's rotations and mirror images (8 "
-        "readings a step), or --no-symmetric-q on their own (default: each file's own rule)",
-    )  # fmt: skip
-    p.add_argument(
-        "--finish-mask", action=argparse.BooleanOptionalAction, default=None,
-        help="agents do not land while an unseen target can still be reached and left for "
-        "home, or --no-finish-mask they may (default: each file's own rule)",
-    )  # fmt: skip
+    add_rule_option(p)
     p.add_argument(
         "--backend", default="grid", choices=["grid", "mujoco"],
         help="simulate on the grid or fly in MuJoCo (default: %(default)s)",

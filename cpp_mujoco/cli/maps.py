@@ -14,6 +14,7 @@ from cpp_mujoco.cli.options import (
     optimal_options,
     out_dir,
     progress_wanted,
+    rules_for,
 )
 
 DEFAULT_SIZE = 16
@@ -126,20 +127,14 @@ def cmd_generate(args) -> None:
 
 
 # --------------------------------------------------------------------------- evaluate --map-set
-def agent_entry(
-    spec: str, agent, symmetric_q: bool | None, finish_mask: bool | None = None
-) -> tuple[str, object]:
-    """(label, agent) of ``--agent SPEC``; ``--[no-]symmetric-q`` and ``--[no-]finish-mask``
-    override the file's rules and say so in the label (so in file names: runs with and without
-    never overwrite each other)."""
-    notes = []
-    if symmetric_q is not None:
-        agent.symmetric_q = symmetric_q
-        notes.append("symmetric Q" if symmetric_q else "plain Q")
-    if finish_mask is not None:
-        agent.finish_mask = finish_mask
-        notes.append("finish mask" if finish_mask else "no finish mask")
-    return f"ddqn[{', '.join([spec, *notes])}]", agent
+def agent_entry(spec: str, agent, rules: list[str] | None) -> tuple[str, object]:
+    """(label, agent) of ``--agent SPEC`` flown with ``--rule rules`` (None: the file's own
+    rules); a label with other rules than the file's says which (so do file names: runs with
+    other rules never overwrite each other)."""
+    names = rules_for(agent.rule_names, rules)
+    if names == agent.rule_names:
+        return f"ddqn[{spec}]", agent
+    return f"ddqn[{spec}, rules: {'+'.join(names) or 'none'}]", agent.with_rules(names)
 
 
 def _set_agent(spec: str, set_name: str, size: int):
@@ -195,10 +190,7 @@ def cmd_evaluate_map_set(
     from cpp_mujoco.planners import make_planner
 
     spec = map_set_spec(args.map_set)
-    agents = [
-        agent_entry(a, _set_agent(a, spec.name, spec.size), args.symmetric_q, args.finish_mask)
-        for a in args.agent
-    ]
+    agents = [agent_entry(a, _set_agent(a, spec.name, spec.size), args.rule) for a in args.agent]
     maps = load_map_set(spec.name, first=args.first)
     names = args.planner or ([] if agents else list(planner_names))
 

@@ -24,6 +24,14 @@ DEFAULT_PLANNERS = PLANNER_NAMES[:3]
 # Dryden turbulence levels (MIL-F-8785C), the same as physics.air.turbulence.LEVELS; named
 # here so that building the parser imports no numerical module (a test keeps them equal)
 TURBULENCE_LEVELS = ("none", "light", "moderate", "severe")
+# the agents' rules (cpp_mujoco.agent.rules.RULES, named here with one line each so that building
+# the parser imports no torch; a test keeps them equal), in the order an agent applies them
+RULES = {
+    "return-mask": "only the actions after which the way home is still paid",
+    "revisit-mask": "no move back into a fruitless cell flown through since the coverage grew",
+    "finish-mask": "no landing while an unseen target can still be reached and left for home",
+    "symmetric-q": "the argmax of the Q-values averaged over the map's rotations and mirrors",
+}
 TRAIN_HELP = "train the DDQN agent on a map"
 TRAIN_GENERAL_HELP = "train one DDQN agent for any map on generated maps"
 DEFAULT_CACHE = "results/optimum"  # the committed cache of the bundled maps' protocol
@@ -189,3 +197,41 @@ def optimal_options(args) -> dict:
         time_limit_s=args.time_limit, workers=args.solver_workers, solver=args.solver
     )
     return {"options": options, "cache_folder": args.optimum, "jobs": args.jobs}
+
+
+def add_rule_option(p) -> None:
+    rules = "; ".join(f"{name}: {what}" for name, what in RULES.items())
+    changes = [f"{sign}{name}" for name in RULES for sign in ("+", "no-")]
+    p.add_argument(
+        "--rule", action="append", choices=[*RULES, *changes, "none"], metavar="RULE",
+        help=f"the rules the agents fly with, repeatable: NAME (exactly these), +NAME or no-NAME "
+        f"(the file's own with NAME added or taken away), 'none' (no rule) — {rules} "
+        f"(default: each file's own)",
+    )  # fmt: skip
+
+
+def check_rules(args) -> None:
+    """``--rule`` only with ``--agent``; ``none`` alone; names and changes not mixed."""
+    rules = getattr(args, "rule", None)
+    if not rules:
+        return
+    if not getattr(args, "agent", None):
+        raise ValueError("--rule sets the rules of the agents flown; give --agent too")
+    if "none" in rules and len(rules) > 1:
+        raise ValueError("--rule none flies the agents without any rule; give it alone")
+    changes = [r for r in rules if r.startswith(("+", "no-"))]
+    if changes and len(changes) != len(rules):
+        raise ValueError("--rule takes rule names (exactly these) or +NAME/no-NAME, not both")
+
+
+def rules_for(own: list[str], rules: list[str] | None) -> list[str]:
+    """The rules an agent whose file names ``own`` flies with under ``--rule rules``."""
+    if not rules:
+        return list(own)
+    if rules == ["none"]:
+        return []
+    if not rules[0].startswith(("+", "no-")):
+        return [name for name in RULES if name in rules]
+    added = {r[1:] for r in rules if r.startswith("+")}
+    taken = {r.removeprefix("no-") for r in rules if r.startswith("no-")}
+    return [name for name in RULES if (name in own or name in added) and name not in taken]

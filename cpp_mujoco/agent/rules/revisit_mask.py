@@ -21,9 +21,12 @@ with it do, and results name it (:data:`REVISIT_RULE`, ``conditions.policy``).
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 import numpy as np
 
 from cpp_mujoco.agent.network import NFZ_CHANNEL, TARGET_CHANNEL
+from cpp_mujoco.agent.rules.base import Observation, QValues
 from cpp_mujoco.grid.actions import LAND, MOVES
 from cpp_mujoco.grid.coverage import square_fov_counts
 from cpp_mujoco.grid.mdp import GridConfig
@@ -85,3 +88,26 @@ class RevisitMemory:
         empty = ~kept.any(axis=1)
         kept[empty] = allowed[empty]
         return kept
+
+
+class RevisitMask:
+    """No move back into a fruitless cell flown through since the coverage last grew (a soft
+    rule with a memory per episode of the batch)."""
+
+    name: ClassVar[str] = "revisit-mask"
+    rule: ClassVar[str] = REVISIT_RULE
+    hard: ClassVar[bool] = False
+
+    def __init__(self) -> None:
+        self.memory = RevisitMemory()
+
+    def reset(self, num_episodes: int) -> None:
+        self.memory.reset()
+
+    def allowed(
+        self, obs: Observation, allowed: np.ndarray, floor: np.ndarray, q_values: QValues
+    ) -> np.ndarray:
+        return self.memory.allowed(obs, allowed)
+
+    def identity(self) -> dict[str, Any]:
+        return {"revisit_rule": self.rule}

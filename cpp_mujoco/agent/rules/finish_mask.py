@@ -21,8 +21,11 @@ DDQN target reads the Q-values); results name it (:data:`FINISH_RULE`, ``conditi
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 import numpy as np
 
+from cpp_mujoco.agent.rules.base import Observation, QValues
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import graph_from_observation
 from cpp_mujoco.grid.mdp import GridConfig
@@ -81,3 +84,23 @@ def finish_allowed(
     empty = ~kept.any(axis=1)
     kept[empty] = allowed[empty]
     return kept
+
+
+class FinishMask:
+    """No landing while an unseen target can still be reached and left for home (a soft rule;
+    a row so left with no action takes the moves of ``floor``)."""
+
+    name: ClassVar[str] = "finish-mask"
+    rule: ClassVar[str] = FINISH_RULE
+    hard: ClassVar[bool] = False
+
+    def reset(self, num_episodes: int) -> None:
+        pass
+
+    def allowed(
+        self, obs: Observation, allowed: np.ndarray, floor: np.ndarray, q_values: QValues
+    ) -> np.ndarray:
+        return finish_allowed(obs, allowed, wider=floor)
+
+    def identity(self) -> dict[str, Any]:
+        return {"finish_rule": self.rule}
