@@ -37,15 +37,16 @@ from cpp_mujoco.util.io import atomic_write_bytes, atomic_write_text
 # best.pt chosen by landings
 WIND_STAGES = [  # (folder suffix, seed offset, options)
     ("stage1", 0, [
-        "--wind-max-speed", "12", "--guide", "safe-greedy-wind",
-        "--demo-planner", "beam-search-wind", "--learning-rate", "0.00025",
+        "--wind-max-speed", "12", "--set", "guide=safe-greedy-wind",
+        "--set", "demo_planner=beam-search-wind", "--learning-rate", "0.00025",
         "--total-updates", "10000", "--init-from", "{paper}",
     ]),
     ("", 1, [
-        "--wind-max-speed", "12", "--wind-calm-fraction", "0.35", "--guide", "safe-greedy-wind",
-        "--demo-planner", "beam-search-wind", "--learning-rate", "0.00015",
-        "--total-updates", "6000", "--best-by", "landing", "--init-from", "{stage1}/agent.pt",
-        "--wind-planner-sigmas", "{sigmas}",
+        "--wind-max-speed", "12", "--set", "wind_calm_fraction=0.35",
+        "--set", "guide=safe-greedy-wind",
+        "--set", "demo_planner=beam-search-wind", "--learning-rate", "0.00015",
+        "--total-updates", "6000", "--set", "best_by=landing", "--init-from", "{stage1}/agent.pt",
+        "--set", "wind_planner_sigmas={sigmas}",
     ]),
 ]  # fmt: skip
 # per map, from stage 2 on: the margin the wind planners keep as guide and demonstrator (the
@@ -60,11 +61,11 @@ WIND_MARGIN = {"A": ("4.0", "0.2"), "B": ("6.0", "0.5"), "C": ("4.0", "0.5")}
 PHYSICS_UPDATES = {"A": 2000, "B": 3000, "C": 2000}
 PHYSICS_STAGE = ("physics", 0, [
     "--backend", "mujoco", "--init-from", "{stage2}/best.pt", "--wind-max-speed", "12",
-    "--wind-calm-fraction", "0.35", "--physics-wind-speed", "9", "--physics-calm-share",
-    "{calm_share}", "--guide-fraction", "0", "--demo-fraction", "0.25",
-    "--demo-planner", "beam-search-wind", "--wind-planner-sigmas", "{sigmas}",
-    "--learning-rate", "2e-5", "--best-by", "landing", "--num-envs", "64",
-    "--updates-per-step", "2", "--total-updates", "{physics_updates}",
+    "--set", "wind_calm_fraction=0.35", "--set", "physics_wind_speed=9", "--set",
+    "physics_calm_share={calm_share}", "--set", "guide_fraction=0", "--set", "demo_fraction=0.25",
+    "--set", "demo_planner=beam-search-wind", "--set", "wind_planner_sigmas={sigmas}",
+    "--learning-rate", "2e-5", "--set", "best_by=landing", "--num-envs", "64",
+    "--set", "updates_per_step=2", "--total-updates", "{physics_updates}",
 ])  # fmt: skip
 
 

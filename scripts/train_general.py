@@ -42,38 +42,40 @@ from cpp_mujoco.util.io import atomic_write_bytes, atomic_write_text
 
 BASE_STAGES = [  # (folder, train-general options): stages 1-3, which the calm and wind agents share
     ("stage1", [
-        "--no-return-mask", "--guide-updates", "200000", "--eval-every", "5000",
+        "--no-return-mask", "--set", "guide_updates=200000", "--eval-every", "5000",
         "--stop-after-updates", "25000",
     ]),
     ("stage2", [
-        "--init-from", "{stage1}/agent.pt", "--guide-updates", "200000",
+        "--init-from", "{stage1}/agent.pt", "--set", "guide_updates=200000",
         "--total-updates", "36000", "--eval-every", "4000",
     ]),
     ("stage3", [
         "--init-from", "{stage2}/best.pt", "--target-input", "--named-maps", "A", "B", "C",
-        "--named-share", "0.15", "--maps-per-size", "8192", "--learning-rate", "0.00025",
-        "--guide-updates", "200000", "--total-updates", "36000", "--eval-every", "4000",
-        "--val-maps-per-size", "8",
+        "--set", "named_share=0.15", "--maps-per-size", "8192", "--learning-rate", "0.00025",
+        "--set", "guide_updates=200000", "--total-updates", "36000", "--eval-every", "4000",
+        "--set", "val_maps_per_size=8",
     ]),
 ]  # fmt: skip
 CALM_STAGE = ("stage4", [
     "--init-from", "{stage3}/best.pt", "--target-input", "--named-maps", "A", "B", "C",
-    "--named-share", "0.3", "--named-demo-budget-step", "1", "--named-demo-share", "0.4",
-    "--maps-per-size", "8192", "--demo-maps-per-size", "32", "--learning-rate", "0.0001",
-    "--guide-updates", "200000", "--total-updates", "12000", "--eval-every", "3000",
-    "--val-maps-per-size", "8", "--checkpoint-every", "1500",
+    "--set", "named_share=0.3", "--set", "named_demo_budget_step=1",
+    "--set", "named_demo_share=0.4",
+    "--maps-per-size", "8192", "--set", "demo_maps_per_size=32", "--learning-rate", "0.0001",
+    "--set", "guide_updates=200000", "--total-updates", "12000", "--eval-every", "3000",
+    "--set", "val_maps_per_size=8", "--set", "checkpoint_every=1500",
 ])  # fmt: skip
 STAGES = [*BASE_STAGES, CALM_STAGE]
 
 
 WIND_STAGE = ("stage4-wind", [
     "--init-from", "{stage3}/best.pt", "--target-input", "--named-maps", "A", "B", "C",
-    "--named-share", "0.15", "--maps-per-size", "8192", "--val-maps-per-size", "8",
-    "--learning-rate", "0.00015", "--guide-fraction", "0.25", "--guide-updates", "12000",
-    "--total-updates", "12000", "--eval-every", "2000", "--checkpoint-every", "1000",
-    "--wind-max-speed", "12", "--wind-calm-fraction", "0.35", "--guide", "safe-greedy-wind",
-    "--demo-planner", "beam-search-wind", "--demo-max-side", "16", "--wind-planner-sigmas", "4.0",
-    "--best-by", "landing", "--no-final-eval",
+    "--set", "named_share=0.15", "--maps-per-size", "8192", "--set", "val_maps_per_size=8",
+    "--learning-rate", "0.00015", "--set", "guide_fraction=0.25", "--set", "guide_updates=12000",
+    "--total-updates", "12000", "--eval-every", "2000", "--set", "checkpoint_every=1000",
+    "--wind-max-speed", "12", "--set", "wind_calm_fraction=0.35", "--set", "guide=safe-greedy-wind",
+    "--set", "demo_planner=beam-search-wind", "--set", "demo_max_side=16",
+    "--set", "wind_planner_sigmas=4.0",
+    "--set", "best_by=landing", "--set", "final_eval=false",
 ])  # fmt: skip
 WIND_VALIDATION = GridWind(max_speed=12.0, calm_fraction=0.35)  # the stage's own wind option
 

@@ -30,11 +30,11 @@ def tiny_png(tmp_path):
 
 def tiny_args(png: str) -> list[str]:
     return [
-        "--map", png, "--min-budget", "6", "--max-budget", "10", "--num-envs", "4",
-        "--buffer-size", "400", "--batch-size", "16", "--learning-starts", "40",
-        "--demo-fraction", "0", "--guide-fraction", "0", "--lr-warmup-updates", "0",
-        "--threads", "1", "--no-final-eval", "--checkpoint-every", "1000000",
-        "--checkpoint-minutes", "0",
+        "--map", png, "--set", "min_budget=6", "--set", "max_budget=10", "--num-envs", "4",
+        "--set", "buffer_size=400", "--set", "batch_size=16", "--set", "learning_starts=40",
+        "--set", "demo_fraction=0", "--set", "guide_fraction=0", "--set", "lr_warmup_updates=0",
+        "--threads", "1", "--set", "final_eval=false", "--set", "checkpoint_every=1000000",
+        "--set", "checkpoint_minutes=0",
     ]  # fmt: skip
 
 

@@ -47,13 +47,19 @@ def test_resume_without_checkpoint(tmp_path, tiny_png, capsys):
     assert _snapshot(stale) == {"best.pt": b"old"}
     # an empty or missing folder: a new run, and it says so
     new = tmp_path / "new"
-    assert main(["train", "--out", str(new), *args, "--final-eval"]) == 0
+    assert main(["train", "--out", str(new), *args, "--set", "final_eval=true"]) == 0
     assert "no checkpoint.pt in" in capsys.readouterr().out
     assert (new / "checkpoint.pt").is_file()
     # its final evaluation says what produced it
     result = json.loads((new / "final_eval.json").read_text())
     assert result["map_source"] == tiny_png and result["policy"] == "ddqn-tiny"
     assert result["conditions"]["training"]["updates"] == 2
+    # the resolved settings beside it, as --config reads them back
+    from cpp_mujoco.agent.config import TrainConfig
+    from cpp_mujoco.util.settings import read_settings
+
+    stored = TrainConfig(**read_settings(TrainConfig, new / "config.toml"))
+    assert stored.total_updates == 2 and stored.final_eval and stored.map == tiny_png
 
 
 def test_overwrite_replaces_the_old_run(tmp_path, tiny_png):

@@ -8,7 +8,7 @@ import pytest
 
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.train import Trainer
-from cpp_mujoco.cli.train import add_train_parser, config_from_args
+from cpp_mujoco.cli.train import add_parser, config_from_args
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.protocol.evaluate import evaluate
 
@@ -39,7 +39,7 @@ def test_smoke_training_beats_random(tmp_path):
 
 def test_cli_builds_config():
     parser = argparse.ArgumentParser()
-    add_train_parser(parser.add_subparsers(dest="command"))
+    add_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(
         [
             "train",
@@ -51,8 +51,8 @@ def test_cli_builds_config():
             "x",
             "--learning-rate",
             "1e-3",
-            "--n-step",
-            "1",
+            "--set",
+            "n_step=1",
         ]
     )
     cfg = config_from_args(args)
@@ -119,26 +119,69 @@ def test_the_wind_planner_margin_option_reaches_guide_and_demonstrator(tmp_path,
 
 def test_train_help_states_each_default_once_and_explains_every_option(capsys):
     from cpp_mujoco.cli.main import main
-    from cpp_mujoco.cli.train import _HELP
+    from cpp_mujoco.cli.train import _HELP, SHOWN
 
     names = [f.name for f in dataclasses.fields(TrainConfig)]
     assert set(_HELP) == set(names)
     assert all(len(_HELP[n].split()) >= 3 for n in names)  # a sentence, not the field's name
     with pytest.raises(SystemExit):
         main(["train", "--help"])
-    text = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
-    assert text.count("(default:") == len(names)  # each config option once, the flags never
-    assert "default: None" not in text and "--no-progress" in text
-    for name in names:
+    out = capsys.readouterr().out
+    options = [line for line in out.splitlines() if line.startswith("  -")]
+    assert len(options) <= 25  # the rest: --config FILE, --set KEY=VALUE
+    text = " ".join(out.split())  # argparse wraps lines
+    assert text.count("(default:") == len(SHOWN)  # each shown option once, the flags never
+    assert "default: None" not in text and "--no-progress" in text and "--set KEY=VALUE" in text
+    for name in SHOWN:
         assert f"{_HELP[name]} (default: {getattr(TrainConfig(), name)})" in text
+    with pytest.raises(SystemExit):
+        main(["train", "--list-settings"])
+    listed = capsys.readouterr().out
+    for name in names:  # every setting, with its default and its line
+        assert f"  {name} = {getattr(TrainConfig(), name)!r}\n      {_HELP[name]}" in listed
 
 
 def test_bad_option_value_names_the_option():
     parser = argparse.ArgumentParser()
-    add_train_parser(parser.add_subparsers(dest="command"))
+    add_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["train", "--out", "x", "--eval-every", "0"])
-    with pytest.raises(ValueError, match="invalid option: --eval-every must be >= 1, got 0"):
+    with pytest.raises(ValueError, match="invalid setting: --eval-every must be >= 1, got 0"):
         config_from_args(args)
+    args = parser.parse_args(["train", "--out", "x", "--set", "gamma=2"])
+    with pytest.raises(ValueError, match="invalid setting: .*gamma <= 1"):
+        config_from_args(args)
+
+
+def test_settings_come_from_a_file_then_set_then_the_options(tmp_path):
+    from cpp_mujoco.util.settings import SettingsError, read_settings, to_toml
+
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="command"))
+    toml = tmp_path / "run.toml"
+    toml.write_text('gamma = 0.9\nloss = "mse"\nlearning_rate = 1e-3\nfinal_eval = false\n')
+    argv = ["train", "--out", "x", "--config", str(toml), "--set", "learning_rate=2e-4"]
+    args = parser.parse_args([*argv, "--set", "n_step=2", "--learning-rate", "3e-4"])
+    config = config_from_args(args)
+    assert (config.gamma, config.loss, config.n_step, config.final_eval) == (0.9, "mse", 2, False)
+    assert config.learning_rate == 3e-4  # the option last
+    assert config_from_args(parser.parse_args(argv)).learning_rate == 2e-4  # --set over the file
+    resolved = tmp_path / "config.toml"
+    resolved.write_text(to_toml(config))
+    assert TrainConfig(**read_settings(TrainConfig, resolved)) == config  # the round trip
+    for text, message in [
+        ("gamma", "expected KEY=VALUE"),
+        ("gama=0.9", "unknown setting 'gama'"),
+        ("n_step=two", "n_step: expected int"),
+        ("final_eval=maybe", "expected true or false"),
+        ("learning_rate=nan", "not a number"),
+    ]:
+        with pytest.raises(SettingsError, match=message):
+            config_from_args(parser.parse_args(["train", "--out", "x", "--set", text]))
+    toml.write_text("gamma = [")
+    with pytest.raises(SettingsError, match="not a TOML file"):
+        config_from_args(parser.parse_args(["train", "--out", "x", "--config", str(toml)]))
+    with pytest.raises(SettingsError, match="no such settings file"):
+        config_from_args(parser.parse_args(["train", "--out", "x", "--config", "nope.toml"]))
 
 
 @pytest.mark.parametrize("best_by, kept", [("return", [1, 3]), ("landing", [1, 2])])

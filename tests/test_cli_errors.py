@@ -245,7 +245,7 @@ def test_a_folder_given_as_map_or_a_missing_device_is_one_line(tmp_path, capsys,
     (tmp_path / "adir").mkdir()
     assert main(["fly", "--map", "adir", "--planner", "safe-greedy"]) == 2
     assert "'adir' is a folder" in capsys.readouterr().err
-    code = main(["train", "--map", "C", "--out", str(tmp_path / "run"), "--device", "bogus"])
+    code = main(["train", "--map", "C", "--out", str(tmp_path / "run"), "--set", "device=bogus"])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and "is not valid; use cpu, cuda" in err
     assert not (tmp_path / "run").exists()  # refused before the run folder is touched

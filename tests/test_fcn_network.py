@@ -156,9 +156,11 @@ def test_cli_option_selects_the_network():
     }  # fmt: skip
     assert not config.network_kwargs()["wind_inputs"]  # only with --wind-max-speed
     assert config.home_input and config.network_kwargs()["home_input"]  # on for new runs
-    off = config_from_args(parser.parse_args(["train-general", "--out", "x", "--no-home-input"]))
-    assert not off.home_input and "--no-home-input" in resume_command(
-        parser.parse_args(["train-general", "--out", "x", "--no-home-input"])
+    off = config_from_args(
+        parser.parse_args(["train-general", "--out", "x", "--set", "home_input=false"])
+    )
+    assert not off.home_input and "--set", "home_input=false" in resume_command(
+        parser.parse_args(["train-general", "--out", "x", "--set", "home_input=false"])
     )
     assert GeneralTrainConfig().architecture == "global-local"
     with pytest.raises(SystemExit):

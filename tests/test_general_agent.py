@@ -274,15 +274,21 @@ def test_cli_builds_the_general_config():
 
     args = build_parser().parse_args(
         ["train-general", "--out", "x", "--sizes", "16", "32", "--maps-per-size", "8",
-         "--total-updates", "100", "--local-size", "9"]
+         "--total-updates", "100", "--set", "local_size=9"]
     )  # fmt: skip
     from cpp_mujoco.cli.train_general import config_from_args, resume_command
 
     config = config_from_args(args)
     assert config.sizes == (16, 32) and config.maps_per_size == 8 and config.local_size == 9
-    assert "--sizes 16 32" in resume_command(args) and "train-general" in resume_command(args)
-    args.local_size = 8
-    with pytest.raises(ValueError, match="--local-size"):
+    resume = resume_command(args)
+    assert (
+        "--sizes 16 32" in resume and "--set local_size=9" in resume and "train-general" in resume
+    )
+    args.settings = ["local_size=8"]
+    with pytest.raises(ValueError, match="invalid setting: local_size"):
+        config_from_args(args)
+    args.settings = ["map=B"]  # a per-map setting the general run does not take
+    with pytest.raises(ValueError, match="setting 'map' is not one of this command's"):
         config_from_args(args)
 
 

@@ -263,7 +263,7 @@ def test_a_wind_network_started_from_a_calm_agent_acts_as_it_in_any_wind():
     [
         (["--init-from", "Z"], "unknown agent 'Z'"),
         (["--init-from", "A-wind"], "without wind inputs from one with them"),
-        (["--wind-max-speed", "12", "--wind-calm-fraction", "nan"], "must be finite"),
+        (["--wind-max-speed", "12", "--set", "wind_calm_fraction=nan"], "not a number (NaN)"),
         (["--wind-max-speed", "30"], "calibrated range"),
     ],
 )

@@ -37,15 +37,24 @@ def test_refused_run_folder_stops_the_script(tmp_path, capsys):
 
 
 def test_bad_train_option_stops_the_script(tmp_path, capsys):
-    code = _train_all().main(["--out", str(tmp_path), "--maps", "A", "--", "--gamma", "nan"])
+    code = _train_all().main(["--out", str(tmp_path), "--maps", "A", "--", "--set", "gamma=nan"])
     err = capsys.readouterr().err
-    assert code == 2 and "--gamma" in err and "train_all: training map A failed" in err
+    assert code == 2 and "--set gamma" in err and "train_all: training map A failed" in err
     assert list(tmp_path.iterdir()) == []
 
 
 def test_run_without_an_evaluation_stops_with_a_message(tmp_path, capsys):
     """Too short a run selects no best.pt; the script says so instead of a traceback."""
-    fast = ["--eval-every", "1000000", "--demo-fraction", "0", "--no-final-eval", "--threads", "1"]
+    fast = [
+        "--eval-every",
+        "1000000",
+        "--set",
+        "demo_fraction=0",
+        "--set",
+        "final_eval=false",
+        "--threads",
+        "1",
+    ]
     argv = ["--out", str(tmp_path), "--maps", "A", "--minutes", "0.002", "--", *fast]
     code = _train_all().main(argv)
     err = capsys.readouterr().err
@@ -79,22 +88,24 @@ def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
     first, second, physics = calls
 
     def opt(cmd, name):
-        return cmd[cmd.index(name) + 1]
+        if name.startswith("--"):
+            return cmd[cmd.index(name) + 1]
+        return next(s.split("=", 1)[1] for s in cmd if s.startswith(f"{name}="))  # --set
 
     assert opt(first, "--out") == str(tmp_path / "B-stage1")
     assert opt(first, "--init-from") == "B"  # the paper agent
     assert opt(second, "--out") == str(tmp_path / "B")
     assert opt(second, "--init-from") == str(tmp_path / "B-stage1" / "agent.pt")
     assert [opt(c, "--seed") for c in calls] == ["0", "1", "0"]
-    assert opt(second, "--best-by") == "landing"
+    assert opt(second, "best_by") == "landing"
     assert opt(physics, "--out") == str(tmp_path / "B-physics")
     assert opt(physics, "--backend") == "mujoco"
     assert opt(physics, "--init-from") == str(tmp_path / "B" / "best.pt")
     assert opt(physics, "--total-updates") == "3000"
     # B's teachers keep the wider margin from stage 2 on, and physics flies more calm slots
-    assert "--wind-planner-sigmas" not in first
-    assert opt(second, "--wind-planner-sigmas") == opt(physics, "--wind-planner-sigmas") == "6.0"
-    assert opt(physics, "--physics-calm-share") == "0.5"
+    assert not any(s.startswith("wind_planner_sigmas=") for s in first)
+    assert opt(second, "wind_planner_sigmas") == opt(physics, "wind_planner_sigmas") == "6.0"
+    assert opt(physics, "physics_calm_share") == "0.5"
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["B"]["agent"] == str(tmp_path / "B-physics" / "agent.pt")
     assert summary["B"]["landing_ratio"] > 0.9  # the agent.pt it kept was evaluated
@@ -105,7 +116,7 @@ def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
     assert module.main(["--wind", "--out", str(tmp_path / "c"), "--maps", "C"]) == 0
     outs = [str(tmp_path / "c" / n) for n in ("C-stage1", "C", "C-physics")]
     assert [opt(c, "--out") for c in calls] == outs
-    assert opt(calls[1], "--wind-planner-sigmas") == "4.0"  # the planners' own margin
+    assert opt(calls[1], "wind_planner_sigmas") == "4.0"  # the planners' own margin
     assert opt(calls[2], "--total-updates") == "2000"
 
 

@@ -21,7 +21,10 @@ from pathlib import Path
 
 LOCK_NAME = ".lock"
 # the files a run writes; --overwrite removes these (and only these) before the new run starts
-RUN_FILES = ("checkpoint.pt", "agent.pt", "best.pt", "log.csv", "training.png", "final_eval.json")
+RUN_FILES = (
+    "checkpoint.pt", "agent.pt", "best.pt", "log.csv", "training.png", "final_eval.json",
+    "config.toml",
+)  # fmt: skip
 
 
 class RunFolderError(ValueError):

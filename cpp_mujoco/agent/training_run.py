@@ -15,6 +15,8 @@ from cpp_mujoco.agent.network import check_can_start_from
 from cpp_mujoco.agent.run_folder import claim_run_folder
 from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.maps import load_map
+from cpp_mujoco.util.io import atomic_write_text
+from cpp_mujoco.util.settings import to_toml
 
 T = TypeVar("T", bound=Trainer)
 
@@ -58,5 +60,7 @@ def run_in_folder(
             print(f"resuming {out / 'checkpoint.pt'} at update {trainer.updates}")
         elif resume:
             print(f"--resume: no checkpoint.pt in {out}; starting a new run there")
+        # the resolved settings, as --config reads them back (after a resume: the run's own)
+        atomic_write_text(out / "config.toml", to_toml(trainer.config))
         trainer.run(progress=progress)
     return trainer

@@ -1,20 +1,26 @@
 """``cpp-mujoco train``: its sub-parser, registered like every subcommand (:func:`add_parser`
 sets ``func``; :mod:`cpp_mujoco.cli.main` assembles the command line).
 
-Every :class:`TrainConfig` field is an option (``--learning-rate``, ``--num-envs`` …), so a run is
-reproducible from its command line alone. Exit codes: 0 done, 2 bad input (one line on stderr,
-nothing written), 130/143 stopped by SIGINT/SIGTERM after saving a resumable checkpoint.
+The settings a person changes run by run are options (``--map``, ``--total-updates`` …); every
+other :class:`TrainConfig` field comes from ``--config FILE`` (TOML) or ``--set KEY=VALUE``
+(:mod:`cpp_mujoco.cli.settings_options`), and the run folder keeps the resolved settings
+(``config.toml``). Exit codes: 0 done, 2 bad input (one line on stderr, nothing written),
+130/143 stopped by SIGINT/SIGTERM after saving a resumable checkpoint.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import re
-import shlex
 import sys
 
 from cpp_mujoco.agent.config import TrainConfig
+from cpp_mujoco.cli.settings_options import (
+    add_settings_options,
+    build_config,
+    given_settings,
+)
+from cpp_mujoco.cli.settings_options import resume_command as settings_resume_command
 
 # one sentence per TrainConfig field (tests/test_agent_train.py checks that none is missing)
 _HELP = {
@@ -83,14 +89,17 @@ _HELP = {
 # evaluation flies it), calm air and 9 m/s moderate turbulence from N, E, S and W in MuJoCo
 FINETUNE_EXAMPLE = (
     "cpp-mujoco train --map B --backend mujoco --init-from B-wind --wind-max-speed 12"
-    " --wind-calm-fraction 0.35 --physics-wind-speed 9 --physics-calm-share 0.2"
-    " --guide-fraction 0 --demo-fraction 0 --learning-rate 1e-4 --total-updates 3000"
-    " --best-by landing --out runs/finetune-B"
+    " --set wind_calm_fraction=0.35 --set physics_wind_speed=9 --set physics_calm_share=0.2"
+    " --set guide_fraction=0 --set demo_fraction=0 --learning-rate 1e-4 --total-updates 3000"
+    " --set best_by=landing --out runs/finetune-B"
 )
-
-
-def _flag(name: str) -> str:
-    return "--" + name.replace("_", "-")
+# the settings shown as options; the others: --config FILE, --set KEY=VALUE, --list-settings
+SHOWN = (
+    "map", "seed", "total_updates", "max_minutes", "stop_after_updates", "eval_every",
+    "learning_rate", "num_envs", "return_mask", "wind_max_speed", "backend", "init_from",
+    "threads",
+)  # fmt: skip
+ALLOWED = tuple(f.name for f in dataclasses.fields(TrainConfig))
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -128,52 +137,21 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         action="store_true",
         help="no progress bar (there is none anyway when stderr is not a terminal)",
     )
-    defaults = TrainConfig()
-    for f in dataclasses.fields(TrainConfig):
-        default = getattr(defaults, f.name)
-        text = f"{_HELP[f.name]} (default: {default})"
-        kind = type(default)
-        if kind is bool:
-            action = argparse.BooleanOptionalAction
-            p.add_argument(_flag(f.name), dest=f.name, action=action, default=None, help=text)
-        else:
-            p.add_argument(_flag(f.name), dest=f.name, type=kind, default=None, help=text)
+    add_settings_options(p, TrainConfig, SHOWN, _HELP, ALLOWED)
     p.set_defaults(func=run_train, own_signals=True)
     return p
 
 
-add_train_parser = add_parser  # the earlier name
-
-
-def _given(args: argparse.Namespace) -> dict:
-    return {
-        f.name: getattr(args, f.name)
-        for f in dataclasses.fields(TrainConfig)
-        if getattr(args, f.name, None) is not None
-    }
-
-
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
-    """The config the options describe; a bad value is a ``ValueError`` naming its option."""
-    given = _given(args)
-    try:
-        return TrainConfig.paper(**given) if getattr(args, "paper", False) else TrainConfig(**given)
-    except ValueError as exc:
-        names = "|".join(f.name for f in dataclasses.fields(TrainConfig))
-        text = re.sub(rf"\b({names})\b", lambda m: _flag(m[1]), str(exc))
-        raise ValueError(f"invalid option: {text}") from None
+    """The config the command line describes; a bad value is a ``ValueError`` naming it."""
+    given = given_settings(args, TrainConfig, SHOWN, ALLOWED)
+    make = TrainConfig.paper if getattr(args, "paper", False) else TrainConfig
+    return build_config(make, given, SHOWN)
 
 
 def resume_command(args: argparse.Namespace) -> str:
     """The command line that continues this run (same settings, plus ``--resume``)."""
-    parts = ["cpp-mujoco", "train", "--out", str(args.out), "--resume"]
-    parts += ["--paper"] if getattr(args, "paper", False) else []
-    for name, value in _given(args).items():
-        if isinstance(value, bool):
-            parts.append(_flag(name) if value else "--no-" + _flag(name)[2:])
-        else:
-            parts += [_flag(name), str(value)]
-    return shlex.join(parts)
+    return settings_resume_command("train", args, SHOWN)
 
 
 def run_train(args: argparse.Namespace) -> int:

@@ -1,9 +1,10 @@
 """``cpp-mujoco train-general``: one agent for maps it has never seen, trained on generated maps.
 
-Registered like ``train`` (:mod:`cpp_mujoco.cli.train`): every :class:`GeneralTrainConfig` field
-is an option, the learning settings with ``train``'s help text; the fields the general run does
-not use (``--map``, budgets, the physics fine-tuning) are not options; the grid's wind option
-(``--wind-max-speed``) is, with the return mask priced at the observed wind. Exit codes as
+Registered like ``train`` (:mod:`cpp_mujoco.cli.train`): the settings changed run by run are
+options, every other :class:`GeneralTrainConfig` field comes from ``--config FILE`` or
+``--set KEY=VALUE`` (the learning settings with ``train``'s help text); the fields the general
+run does not use (the map, budgets, the physics fine-tuning) are refused; the grid's wind option
+(``--wind-max-speed``) is one, with the return mask priced at the observed wind. Exit codes as
 ``train``'s: 0 done, 2 bad input, 130/143 stopped by a signal after saving a checkpoint.
 """
 
@@ -11,13 +12,17 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import re
-import shlex
 import sys
 
 from cpp_mujoco.agent.general_config import ARCHITECTURES, UNUSED, GeneralTrainConfig
 from cpp_mujoco.cli.options import TRAIN_GENERAL_HELP as HELP  # the light parser's line: the same
-from cpp_mujoco.cli.train import _HELP, _flag
+from cpp_mujoco.cli.settings_options import (
+    add_settings_options,
+    build_config,
+    given_settings,
+)
+from cpp_mujoco.cli.settings_options import resume_command as settings_resume_command
+from cpp_mujoco.cli.train import _HELP
 
 COMMAND = "train-general"
 # the per-map trainer's physics fine-tuning is not the general agent's (its grid wind option is)
@@ -81,8 +86,14 @@ _GENERAL_HELP = {
 }
 
 
-def _options() -> list[dataclasses.Field]:
-    return [f for f in dataclasses.fields(GeneralTrainConfig) if f.name not in EXCLUDED]
+ALLOWED = tuple(f.name for f in dataclasses.fields(GeneralTrainConfig) if f.name not in EXCLUDED)
+# the settings shown as options; the others: --config FILE, --set KEY=VALUE, --list-settings
+SHOWN = (
+    "seed", "sizes", "maps_per_size", "total_updates", "max_minutes", "stop_after_updates",
+    "eval_every", "learning_rate", "num_envs", "return_mask", "architecture", "target_input",
+    "named_maps", "wind_max_speed", "init_from", "threads",
+)  # fmt: skip
+HELPS = {name: _GENERAL_HELP.get(name) or _HELP[name] for name in ALLOWED}
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -101,54 +112,22 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     folder.add_argument("--resume", action="store_true", help="continue the run in --out")
     folder.add_argument("--overwrite", action="store_true", help="replace the run in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    defaults = GeneralTrainConfig()
-    for f in _options():
-        default = getattr(defaults, f.name)
-        text = f"{_GENERAL_HELP.get(f.name) or _HELP[f.name]} (default: {default})"
-        if f.name == "sizes":
-            p.add_argument("--sizes", type=int, nargs="+", default=None, help=text)
-        elif f.name == "named_maps":
-            p.add_argument("--named-maps", nargs="+", default=None, metavar="MAP", help=text)
-        elif f.name == "architecture":
-            p.add_argument("--architecture", choices=ARCHITECTURES, default=None, help=text)
-        elif type(default) is bool:
-            action = argparse.BooleanOptionalAction
-            p.add_argument(_flag(f.name), dest=f.name, action=action, default=None, help=text)
-        else:
-            p.add_argument(_flag(f.name), dest=f.name, type=type(default), default=None, help=text)
+    add_settings_options(
+        p, GeneralTrainConfig, SHOWN, HELPS, ALLOWED, choices={"architecture": ARCHITECTURES}
+    )
     p.set_defaults(func=run_train_general, own_signals=True)
     return p
 
 
-def _given(args: argparse.Namespace) -> dict:
-    return {f.name: getattr(args, f.name) for f in _options() if getattr(args, f.name) is not None}
-
-
 def config_from_args(args: argparse.Namespace) -> GeneralTrainConfig:
-    """The config the options describe; a bad value is a ``ValueError`` naming its option."""
-    given = _given(args)
-    for name in ("sizes", "named_maps"):
-        if name in given:
-            given[name] = tuple(given[name])
-    try:
-        return GeneralTrainConfig(**given)
-    except ValueError as exc:
-        names = "|".join(f.name for f in _options())
-        text = re.sub(rf"\b({names})\b", lambda m: _flag(m[1]), str(exc))
-        raise ValueError(f"invalid option: {text}") from None
+    """The config the command line describes; a bad value is a ``ValueError`` naming it."""
+    given = given_settings(args, GeneralTrainConfig, SHOWN, ALLOWED)
+    return build_config(GeneralTrainConfig, given, SHOWN)
 
 
 def resume_command(args: argparse.Namespace) -> str:
     """The command line that continues this run (same settings, plus ``--resume``)."""
-    parts = ["cpp-mujoco", COMMAND, "--out", str(args.out), "--resume"]
-    for name, value in _given(args).items():
-        if isinstance(value, bool):
-            parts.append(_flag(name) if value else "--no-" + _flag(name)[2:])
-        elif isinstance(value, list):
-            parts += [_flag(name), *map(str, value)]
-        else:
-            parts += [_flag(name), str(value)]
-    return shlex.join(parts)
+    return settings_resume_command(COMMAND, args, SHOWN)
 
 
 def run_train_general(args: argparse.Namespace) -> int:
