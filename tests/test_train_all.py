@@ -130,8 +130,12 @@ def test_each_bundled_wind_agent_is_what_train_all_makes(name):
     config = TrainConfig.from_dict(load_agent(name).metadata["config"])
     assert config.map == m and config.seed == offset
     pairs = dict(zip(options[::2], options[1::2], strict=True))
+    settings = [v for f, v in zip(options[::2], options[1::2], strict=True) if f == "--set"]
     pairs.pop("--init-from")  # a path on the machine that trained it
-    for flag, value in pairs.items():
-        key = flag[2:].replace("-", "_")
+    pairs.pop("--set", None)
+    given = {flag[2:].replace("-", "_"): value for flag, value in pairs.items()}
+    given.update(s.split("=", 1) for s in settings)
+    for key, value in given.items():
         have = getattr(config, key)
-        assert type(have)(value) == have, f"{name}: {flag} {value} in train_all, {have} bundled"
+        want = value == "true" if isinstance(have, bool) else type(have)(value)
+        assert want == have, f"{name}: {key}={value} in train_all, {have} bundled"
