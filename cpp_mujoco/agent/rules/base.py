@@ -36,3 +36,10 @@ class Rule(Protocol):
 
     def identity(self) -> dict[str, Any]:
         """What results record of the rule (its rule string, its parameters)."""
+
+
+class Stateless:
+    """A rule that keeps nothing between steps: an episode start changes nothing."""
+
+    def reset(self, num_episodes: int) -> None:
+        pass

@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from cpp_mujoco.agent.rules.base import Observation, QValues
+from cpp_mujoco.agent.rules.base import Observation, QValues, Stateless
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import graph_from_observation
 from cpp_mujoco.grid.mdp import GridConfig
@@ -86,16 +86,13 @@ def finish_allowed(
     return kept
 
 
-class FinishMask:
+class FinishMask(Stateless):
     """No landing while an unseen target can still be reached and left for home (a soft rule;
     a row so left with no action takes the moves of ``floor``)."""
 
     name: ClassVar[str] = "finish-mask"
     rule: ClassVar[str] = FINISH_RULE
     hard: ClassVar[bool] = False
-
-    def reset(self, num_episodes: int) -> None:
-        pass
 
     def allowed(
         self, obs: Observation, allowed: np.ndarray, floor: np.ndarray, q_values: QValues

@@ -13,12 +13,12 @@ from typing import Any, ClassVar
 import numpy as np
 
 from cpp_mujoco.agent.home_input import safe_actions
-from cpp_mujoco.agent.rules.base import Observation, QValues
+from cpp_mujoco.agent.rules.base import Observation, QValues, Stateless
 from cpp_mujoco.grid.return_rule import RETURN_RULE
 from cpp_mujoco.grid.way_home import ReturnMargin
 
 
-class ReturnMask:
+class ReturnMask(Stateless):
     """Only the actions that keep the way home paid (a hard rule)."""
 
     name: ClassVar[str] = "return-mask"
@@ -27,9 +27,6 @@ class ReturnMask:
 
     def __init__(self, margin: ReturnMargin | None = None):
         self.margin = margin  # the wind planners' margin kept in an observed wind (None: theirs)
-
-    def reset(self, num_episodes: int) -> None:
-        pass
 
     def allowed(
         self, obs: Observation, allowed: np.ndarray, floor: np.ndarray, q_values: QValues

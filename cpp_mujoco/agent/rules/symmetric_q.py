@@ -14,19 +14,16 @@ import numpy as np
 import torch
 
 from cpp_mujoco.agent.ddqn import mask_unsafe
-from cpp_mujoco.agent.rules.base import Observation, QValues
+from cpp_mujoco.agent.rules.base import Observation, QValues, Stateless
 from cpp_mujoco.grid.symmetry import SYMMETRIC_Q_RULE, symmetric_q_values
 
 
-class SymmetricQ:
+class SymmetricQ(Stateless):
     """The argmax of the Q-values averaged over the map's images (a soft rule, put last)."""
 
     name: ClassVar[str] = "symmetric-q"
     rule: ClassVar[str] = SYMMETRIC_Q_RULE
     hard: ClassVar[bool] = False
-
-    def reset(self, num_episodes: int) -> None:
-        pass
 
     def allowed(
         self, obs: Observation, allowed: np.ndarray, floor: np.ndarray, q_values: QValues
