@@ -123,7 +123,7 @@ def test_a_user_map_named_like_a_bundled_map_is_labelled_and_drawn_as_itself(
     assert data["episodes"] == 4 * 51  # the user's 4 landing cells, not bundled A's 36
     assert not list((tmp_path / "out").glob("grid_A_*"))
     assert drawn and all(m.digest == SMALL.digest for m in drawn)  # figures of the user's map
-    assert main(["maps", str(path), "--out", str(tmp_path / "maps")]) == 0
+    assert main(["maps", "draw", str(path), "--out", str(tmp_path / "maps")]) == 0
     assert (tmp_path / "maps" / f"map_{label}.png").is_file()
 
 
@@ -133,7 +133,9 @@ def test_every_option_has_help_and_states_its_default_at_most_once():
     for name, sub in commands.items():
         if name == "train":  # its options are generated from TrainConfig in cli/train.py
             continue
-        for action in sub._actions:  # noqa: SLF001
+        nested = [a for a in sub._actions if a.dest == "maps_command"]  # noqa: SLF001
+        parsers = [sub, *(p for a in nested for p in a.choices.values())]
+        for action in (a for p in parsers for a in p._actions):  # noqa: SLF001
             if action.dest == "help":
                 continue
             assert action.help, f"{name} {action.option_strings or action.dest} has no help"

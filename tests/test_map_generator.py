@@ -1,4 +1,4 @@
-"""Generated maps: the checks, determinism per seed, size classes, ``maps --generate``, the
+"""Generated maps: the checks, determinism per seed, size classes, ``maps generate``, the
 held-out map sets and ``evaluate --map-set``."""
 
 import json
@@ -176,7 +176,7 @@ def test_size_classes():
 # ----------------------------------------------------------------------------------------- CLI
 def test_maps_generate_writes_loadable_pngs(tmp_path, capsys):
     out = tmp_path / "gen"
-    assert main(["maps", "--generate", "3", "--seed", "5", "--out", str(out)]) == 0
+    assert main(["maps", "generate", "3", "--seed", "5", "--out", str(out)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert [line.split()[0] for line in lines[:3]] == ["gen16-s5", "gen16-s6", "gen16-s7"]
     assert "budgets 25..75" in lines[3]
@@ -185,31 +185,31 @@ def test_maps_generate_writes_loadable_pngs(tmp_path, capsys):
         assert loaded.name == f"gen16-s{seed}"
         assert loaded.digest == generate_from_seed(seed).digest
     # a non-empty folder only with --overwrite
-    assert main(["maps", "--generate", "1", "--out", str(out)]) == 2
+    assert main(["maps", "generate", "1", "--out", str(out)]) == 2
     assert "not empty" in capsys.readouterr().err
-    assert main(["maps", "--generate", "1", "--size", "32", "--out", str(out), "--overwrite"]) == 0
+    assert main(["maps", "generate", "1", "--size", "32", "--out", str(out), "--overwrite"]) == 0
     assert load_map(out / "gen32-s0.png").shape == (32, 32)
-    argv = ["maps", "--generate", "1", "--door-wall", "1", "--out", str(tmp_path / "doors")]
+    argv = ["maps", "generate", "1", "--door-wall", "1", "--out", str(tmp_path / "doors")]
     assert main(argv) == 0
     door = generate_from_seed(0, 16, door_wall=1.0)
     assert load_map(tmp_path / "doors" / f"{door.name}.png").digest == door.digest
 
 
 def test_maps_generate_refuses_bad_input(tmp_path, capsys):
-    for bad in (["--generate", "0"], ["--generate", "2", "--size", "7"]):
+    for bad in (["generate", "0"], ["generate", "2", "--size", "7"]):
         with pytest.raises(SystemExit) as exit_info:
             main(["maps", *bad, "--out", str(tmp_path / "x")])
         assert exit_info.value.code == 2
         assert "must be >=" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # --out is required
+        main(["maps", "generate", "2"])
+    assert "--out" in capsys.readouterr().err
     blocker = tmp_path / "file"
     blocker.write_text("x")
     for argv, message in [
-        (["--generate", "2", "--out", str(blocker / "sub")], "cannot create output folder"),
-        (["--generate", "2", "--out", str(blocker)], "is a file"),
-        (["--generate", "2"], "needs --out"),
-        (["--seed", "3"], "only with --generate"),
-        (["--door-wall", "1"], "only with --generate"),
-        (["--generate", "1", "--door-wall", "nan", "--out", str(tmp_path / "y")], "door_wall"),
+        (["generate", "2", "--out", str(blocker / "sub")], "cannot create output folder"),
+        (["generate", "2", "--out", str(blocker)], "is a file"),
+        (["generate", "1", "--door-wall", "nan", "--out", str(tmp_path / "y")], "door_wall"),
     ]:
         assert main(["maps", *argv]) == 2
         err = capsys.readouterr().err

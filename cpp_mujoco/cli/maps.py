@@ -1,5 +1,6 @@
-"""The ``maps`` subcommand (list, show, ``--generate``) and the map sets ``evaluate --map-set``
-flies; like every command, these import the numerical modules only when they run.
+"""The ``maps`` subcommand (``maps draw``, ``maps generate``) and the map sets
+``evaluate --map-set`` flies; like every command, these import the numerical modules only when
+they run.
 """
 
 from __future__ import annotations
@@ -22,27 +23,25 @@ DEFAULT_SIZE = 16
 
 # ---------------------------------------------------------------------------------- options
 def add_generate_options(p) -> None:
+    p.add_argument("count", type=int_at_least(1), metavar="N", help="how many maps to write")
+    p.add_argument("--out", required=True, help="the folder for the PNG maps")
     p.add_argument(
-        "--generate", type=int_at_least(1), metavar="N",
-        help="write N random maps as PNG files into --out instead of drawing figures",
-    )  # fmt: skip
-    p.add_argument(
-        "--seed", type=int_at_least(0),
-        help="with --generate: the first map's seed; the n-th map is seed + n (default: 0). "
+        "--seed", type=int_at_least(0), default=0,
+        help="the first map's seed; the n-th map is seed + n (default: %(default)s). "
         "Seeds 1000000..1999999 are the held-out test sets': never train on them",
     )  # fmt: skip
     p.add_argument(
-        "--size", type=int_at_least(8),
-        help=f"with --generate: the maps' side, cells (default: {DEFAULT_SIZE})",
+        "--size", type=int_at_least(8), default=DEFAULT_SIZE,
+        help="the maps' side, cells (default: %(default)s)",
     )  # fmt: skip
     p.add_argument(
         "--door-wall", type=float, metavar="P",
-        help="with --generate: the chance each map has a wall across it with one door of 1-2 "
-        "cells, as on map C (default: 0, the held-out v1 sets' generator)",
+        help="the chance each map has a wall across it with one door of 1-2 cells, as on map C "
+        "(default: 0, the held-out v1 sets' generator)",
     )  # fmt: skip
     p.add_argument(
         "--overwrite", action="store_true",
-        help="with --generate: write into a non-empty --out (maps of the same name are replaced)",
+        help="write into a non-empty --out (maps of the same name are replaced)",
     )  # fmt: skip
 
 
@@ -60,23 +59,7 @@ def add_map_set_options(p) -> None:
     )  # fmt: skip
 
 
-# ---------------------------------------------------------------------------- maps --generate
-def check_generate_options(args) -> bool:
-    """Whether ``maps`` is to generate; a --generate-only option without it is bad input."""
-    if args.generate is None:
-        given = [o for o in ("seed", "size", "door_wall") if getattr(args, o) is not None]
-        given += ["overwrite"] if args.overwrite else []
-        if given:
-            flags = ", ".join("--" + o for o in given)
-            raise ValueError(f"{flags}: only with --generate N")
-        return False
-    if args.maps:
-        raise ValueError("--generate writes new maps; give no map names with it")
-    if args.out is None:
-        raise ValueError("--generate needs --out DIR, the folder for the PNG maps")
-    return True
-
-
+# -------------------------------------------------------------------------- maps generate
 def _claim_folder(path: str, overwrite: bool) -> Path:
     """The output folder, created; a non-empty one only with ``overwrite``."""
     out = Path(path)
@@ -91,15 +74,14 @@ def _claim_folder(path: str, overwrite: bool) -> Path:
 
 
 def cmd_generate(args) -> None:
-    """Write ``--generate N`` maps from seeds ``--seed`` on, one line per map."""
+    """``maps generate N``: N maps from seed ``--seed`` on, one line per map."""
     from cpp_mujoco.map_sets.generator import GeneratorConfig, generate_from_seed
     from cpp_mujoco.map_sets.sets import HELDOUT_SEEDS
     from cpp_mujoco.map_sets.size_classes import budget_range
     from cpp_mujoco.maps import MAX_SIDE
 
-    size = DEFAULT_SIZE if args.size is None else args.size
-    first = 0 if args.seed is None else args.seed
-    seeds = range(first, first + args.generate)
+    size, first = args.size, args.seed
+    seeds = range(first, first + args.count)
     if size > MAX_SIDE:
         raise ValueError(f"--size {size}: maps are at most {MAX_SIDE} cells a side")
     options = {} if args.door_wall is None else {"door_wall": args.door_wall}
@@ -228,17 +210,16 @@ def cmd_evaluate_map_set(
     print("figures: " + ", ".join(str(f) for f in figures))
 
 
-def cmd_maps(args) -> None:
-
-    if check_generate_options(args):
-        return cmd_generate(args)
+def cmd_draw(args) -> None:
+    """``maps draw``: each map as the paper's colour figure, and its cell counts."""
     from cpp_mujoco.maps import bundled_maps, load_map
     from cpp_mujoco.review.plots import map_figure
     from cpp_mujoco.review.results import file_part
     from cpp_mujoco.util.tables import format_table
 
-    grid_maps = [load_map(spec) for spec in args.maps or bundled_maps()]  # all checked first
-    out = out_dir(args.out or "out/maps")
+    specs = getattr(args, "maps", None) or bundled_maps()
+    grid_maps = [load_map(spec) for spec in specs]  # all checked first
+    out = out_dir(getattr(args, "out", None) or "out/maps")
     rows = []
     for grid_map in grid_maps:
         path = map_figure(grid_map, out / f"map_{file_part(grid_map.label)}.png")
@@ -254,9 +235,17 @@ def cmd_maps(args) -> None:
 
 
 def add_maps(sub) -> None:
-    p = sub.add_parser("maps", help="draw maps as the paper's colour figure and list cell counts")
-    p.add_argument("maps", nargs="*", help="bundled names or PNG paths (default: all bundled)")
-    p.add_argument("--out", help="folder for the figures (default: out/maps) or --generate's maps")
-
-    add_generate_options(p)
-    p.set_defaults(func=cmd_maps)
+    p = sub.add_parser(
+        "maps", help="draw maps (maps draw, the default) or generate random ones (maps generate)"
+    )
+    p.set_defaults(func=cmd_draw)
+    kinds = p.add_subparsers(
+        dest="maps_command", metavar="{draw,generate}", help="draw (the default) or generate"
+    )
+    draw = kinds.add_parser("draw", help="draw maps as the paper's colour figure, list cell counts")
+    draw.add_argument("maps", nargs="*", help="bundled names or PNG paths (default: all bundled)")
+    draw.add_argument("--out", help="folder for the figures (default: out/maps)")
+    draw.set_defaults(func=cmd_draw)
+    generate = kinds.add_parser("generate", help="write random maps in the paper's style as PNGs")
+    add_generate_options(generate)
+    generate.set_defaults(func=cmd_generate)
