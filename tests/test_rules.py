@@ -67,6 +67,10 @@ def test_results_name_the_rules_from_the_one_list():
     assert identity["finish_rule"] == FinishMask.rule
     assert "symmetric_q" not in identity  # recorded only when on
     plain = general.with_rules([])
+    assert plain.metadata["rules"] == [] and not plain.metadata["finish_mask"]  # says what it flies
+    assert (
+        general.metadata["finish_mask"] and plain.metadata["digest"] == general.metadata["digest"]
+    )
     assert rules_identity(plain.rules) == {
         "return_mask": False,
         "revisit_mask": False,
