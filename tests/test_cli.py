@@ -160,3 +160,25 @@ def test_architecture_page_cites_only_files_that_exist():
         if not (root / c if c.startswith("scripts/") else root / "cpp_mujoco" / c).is_file()
     ]  # fmt: skip
     assert missing == []
+
+
+def test_the_architecture_page_draws_the_checked_layers_in_their_order():
+    """docs/architecture.md's drawing of the layers is the import-linter contract's order."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    config = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))
+    (contract,) = [c for c in config["tool"]["importlinter"]["contracts"] if c["type"] == "layers"]
+    checked = [
+        [name.strip().removeprefix("cpp_mujoco.") for name in layer.split("|")]
+        for layer in contract["layers"]
+    ]
+    text = (root / "docs" / "architecture.md").read_text(encoding="utf-8")
+    drawing = text.split("```\n", 2)[1]  # the first code block: the layers, top first
+    drawn = [
+        [name.strip() for name in m.group(1).split("|")]
+        for m in re.finditer(r"^  (\w+(?:  \|  \w+)?)(?:  |$)", drawing, re.M)
+    ]
+    assert drawn == checked
