@@ -17,7 +17,7 @@ from cpp_mujoco.agent.checkpoint import CheckpointError, load_checkpoint, networ
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import QNetwork
 from cpp_mujoco.agent.policy import GreedyAgent, MapSizeError
-from cpp_mujoco.agent.rules import RULE_FLAGS, make_rules, rule_names_of
+from cpp_mujoco.agent.rules import make_rules, rule_metadata, rule_names_of
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.util.io import resolve_named_file
 
@@ -67,8 +67,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
             **{k: obj.get(k) for k in ("map", "config", "metrics")},
             **{k: obj[k] for k in ("train_maps", "validation_maps") if k in obj},  # general
             "architecture": obj.get("architecture", "paper"),
-            "rules": names,
-            **{flag: rule in names for flag, rule in RULE_FLAGS.items()},
+            **rule_metadata(names),
             "source": str(where.path),
             "bundled": where.bundled,
             "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],

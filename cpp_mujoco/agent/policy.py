@@ -18,7 +18,7 @@ from cpp_mujoco.agent.ddqn import mask_unsafe
 from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
-from cpp_mujoco.agent.rules import RULE_FLAGS, ReturnMask, Rule, make_rules, rules_identity
+from cpp_mujoco.agent.rules import ReturnMask, Rule, make_rules, rule_metadata, rules_identity
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.protocol.policy import as_batch
@@ -59,9 +59,7 @@ class GreedyAgent:
         """This agent's network flown with the rules ``names`` instead (the return mask keeps
         its margin); the file's metadata is kept, results name the new rules."""
         rules = make_rules(names, self.wind_margin)
-        named = [r.name for r in rules]
-        metadata = {**self.metadata, "rules": named}
-        metadata.update({flag: rule in named for flag, rule in RULE_FLAGS.items()})
+        metadata = {**self.metadata, **rule_metadata([r.name for r in rules])}
         return GreedyAgent(
             self.network, self.budget_scale, self.device, self.name, metadata, rules
         )  # fmt: skip

@@ -11,7 +11,6 @@ and one line on what it does; the resolved settings land in the run folder as ``
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import re
 import shlex
 from collections.abc import Callable, Sequence
@@ -133,9 +132,3 @@ def resume_command(command: str, args: argparse.Namespace, shown: Sequence[str])
         else:
             parts += [flag(name), str(value)]
     return shlex.join(parts)
-
-
-def check_helps(cls: type, helps: dict[str, str], allowed: Sequence[str]) -> list[str]:
-    """The settings without a help line (a test keeps this empty)."""
-    names = {f.name for f in dataclasses.fields(cls)}
-    return sorted(n for n in allowed if n not in helps or n not in names)

@@ -11,6 +11,7 @@ be read again (:func:`read_settings`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 import typing
@@ -24,6 +25,7 @@ class SettingsError(ValueError):
     """A settings file or override the dataclass cannot take."""
 
 
+@functools.cache
 def _kinds(cls: type) -> dict[str, tuple[type, type | None]]:
     """Each field's (kind, element kind): ``int``, ``float``, ``bool``, ``str`` or ``tuple``
     (with its element's kind)."""

@@ -33,11 +33,6 @@ RULE_FLAGS = {
 }
 
 
-def rule_help() -> str:
-    """One line per rule, for ``--help``."""
-    return "; ".join(f"{name}: {cls.__doc__.split(chr(10))[0]}" for name, cls in RULES.items())
-
-
 def check_rule_names(names: Iterable[str]) -> list[str]:
     """The names in :data:`RULES` order, each once; ``ValueError`` naming an unknown one."""
     names = list(names)
@@ -67,6 +62,11 @@ def rule_names_of(stored: Mapping[str, Any]) -> list[str]:
     return [rule for flag, rule in RULE_FLAGS.items() if bool(config.get(flag, False))]
 
 
+def rule_metadata(names: list[str]) -> dict[str, Any]:
+    """What an agent's ``metadata`` says of its rules: the list, and each config flag."""
+    return {"rules": list(names), **{flag: rule in names for flag, rule in RULE_FLAGS.items()}}
+
+
 def rules_identity(rules: Iterable[Rule]) -> dict[str, Any]:
     """What results record of an agent's rules: for every known rule whether it is on (symmetric
     Q only when on, as results always had it), and each rule's own identity."""
@@ -91,7 +91,7 @@ __all__ = [
     "SymmetricQ",
     "check_rule_names",
     "make_rules",
-    "rule_help",
+    "rule_metadata",
     "rule_names_of",
     "rules_identity",
 ]
