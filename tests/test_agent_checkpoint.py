@@ -8,6 +8,7 @@ from cpp_mujoco.agent import CheckpointError, GreedyAgent, MapSizeError, load_ag
 from cpp_mujoco.agent.checkpoint import atomic_save, load_checkpoint
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.train import Trainer
+from cpp_mujoco.agent.training_state import TrainingState
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.maps import GridMap, load_map
 
@@ -64,6 +65,36 @@ def test_agent_round_trip_and_load_agent(run_dir):
     assert "optimizer" not in obj and "replay" not in obj
 
 
+# the keys of a training checkpoint as every run has written them: a checkpoint of an earlier run
+# must resume, so the state's dataclass reads and writes exactly this layout
+CHECKPOINT_KEYS = {
+    "kind", "format_version", "network", "network_kwargs", "budget_scale", "map", "map_digest",
+    "config", "metrics", "rules", "target", "optimizer", "replay", "env", "obs", "ep_return",
+    "rng", "torch_gen", "torch_rng", "counters", "recent", "history", "best",
+}  # fmt: skip
+
+
+def test_the_training_state_is_the_checkpoint_layout_both_ways(run_dir):
+    out, trainer = run_dir
+    stored = load_checkpoint(out / "checkpoint.pt")
+    assert set(stored) == CHECKPOINT_KEYS
+    assert set(stored["counters"]) == {
+        "updates", "episodes", "env_steps", "wall_s", "update_credit"
+    }  # fmt: skip
+    state = TrainingState.from_checkpoint(stored)
+    assert state.progress.updates == trainer.updates == 6
+    again = state.to_checkpoint()
+    assert set(again) == CHECKPOINT_KEYS and again["counters"] == stored["counters"]
+    assert all(torch.equal(again["network"][k], v) for k, v in stored["network"].items())
+    # an agent file is not a run's state; nor is a checkpoint that lost part of it
+    with pytest.raises(CheckpointError, match="agent file cannot be resumed"):
+        TrainingState.from_checkpoint(load_checkpoint(out / "agent.pt"))
+    with pytest.raises(CheckpointError, match="lacks replay"):
+        TrainingState.from_checkpoint({k: v for k, v in stored.items() if k != "replay"})
+    with pytest.raises(CheckpointError, match="counters"):
+        TrainingState.from_checkpoint({**stored, "counters": {"updates": 1, "laps": 2}})
+
+
 def test_resume_continues_exactly(tmp_path):
     config = TrainConfig(total_updates=8, **{**TINY, "checkpoint_every": 4})
     straight = Trainer(config, tmp_path / "a")
@@ -108,7 +139,7 @@ def test_other_map_size_is_a_clear_error(run_dir, tmp_path):
 
 def test_resume_with_other_map_size_fails_clearly(run_dir, tmp_path, monkeypatch):
     out, _ = run_dir
-    import cpp_mujoco.agent.train as train_mod
+    import cpp_mujoco.agent.map_training as train_mod
 
     small = GridMap(
         landing=np.eye(8, dtype=bool),

@@ -95,7 +95,7 @@ def test_guided_exploration_follows_planner_and_decays(tmp_path):
 
 
 def test_the_wind_planner_margin_option_reaches_guide_and_demonstrator(tmp_path, monkeypatch):
-    import cpp_mujoco.agent.train as train_module
+    import cpp_mujoco.agent.map_training as train_module
 
     taught = []
     real = train_module.record_demonstrations

@@ -10,8 +10,9 @@ from cpp_mujoco.agent.checkpoint import agent_payload, atomic_save, load_checkpo
 from cpp_mujoco.agent.fcn_network import FCNQNetwork, dilations_for, map_mask
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_network import GeneralQNetwork, pad_grids
-from cpp_mujoco.agent.general_train import GeneralTrainer, check_general_resumable
+from cpp_mujoco.agent.general_training import check_general_resumable
 from cpp_mujoco.agent.network import observation_to_tensors
+from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.map_sets.generator import generate_from_seed
 from cpp_mujoco.map_sets.size_classes import size_config
@@ -179,8 +180,8 @@ SMOKE = dict(
 
 def test_smoke_training_saves_an_fcn_agent(tmp_path):
     # 12×12 maps padded to 16×16 share the minibatches with 16×16 ones
-    trainer = GeneralTrainer(GeneralTrainConfig(**SMOKE), tmp_path)
-    assert isinstance(trainer.online, FCNQNetwork) and trainer.pool.side == 16
+    trainer = Trainer(GeneralTrainConfig(**SMOKE), tmp_path)
+    assert isinstance(trainer.online, FCNQNetwork) and trainer.maps.pool.side == 16
     trainer.run(progress=False)
     assert trainer.updates == 20
     agent = load_agent(tmp_path / "agent.pt")
@@ -191,7 +192,7 @@ def test_smoke_training_saves_an_fcn_agent(tmp_path):
     assert torch.equal(agent.network(grid, scalars), trainer.online(grid, scalars))
     state = load_checkpoint(tmp_path / "checkpoint.pt")
     assert state["config"]["architecture"] == "fcn"
-    check_general_resumable(tmp_path / "checkpoint.pt", state, trainer.config, trainer.pool)
+    check_general_resumable(tmp_path / "checkpoint.pt", state, trainer.config, trainer.maps.pool)
     other = GeneralTrainConfig(**{**SMOKE, "architecture": "global-local"})
     with pytest.raises(CheckpointError, match="--architecture fcn"):
-        check_general_resumable(tmp_path / "checkpoint.pt", state, other, trainer.pool)
+        check_general_resumable(tmp_path / "checkpoint.pt", state, other, trainer.maps.pool)

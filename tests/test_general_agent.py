@@ -9,7 +9,7 @@ import torch
 import torch.nn.functional as F
 
 from cpp_mujoco.agent import CheckpointError, MapSizeError, load_agent
-from cpp_mujoco.agent.checkpoint import atomic_save, check_resumable, load_checkpoint
+from cpp_mujoco.agent.checkpoint import atomic_save, load_checkpoint
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_eval import validate
@@ -19,11 +19,13 @@ from cpp_mujoco.agent.general_network import (
     centre_on_uav,
     centred_views,
 )
-from cpp_mujoco.agent.general_train import GeneralTrainer, check_general_resumable
+from cpp_mujoco.agent.general_training import check_general_resumable
 from cpp_mujoco.agent.map_pool import MapPool
+from cpp_mujoco.agent.map_training import check_resumable
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay, record_pool_demonstrations
 from cpp_mujoco.agent.network import observation_to_tensors
+from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.map_sets.generator import generate_from_seed
 from cpp_mujoco.map_sets.size_classes import size_config
@@ -182,15 +184,15 @@ UPDATES = 150  # the trained fixture's run, and the configs compared with it
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     out = tmp_path_factory.mktemp("general")
-    trainer = GeneralTrainer(GeneralTrainConfig(total_updates=UPDATES, **TINY), out)
+    trainer = Trainer(GeneralTrainConfig(total_updates=UPDATES, **TINY), out)
     trainer.run(progress=False)
     return out, trainer
 
 
 def test_smoke_training_beats_random_on_its_maps(trained):
     _, trainer = trained
-    agent = validate(trainer.agent(), trainer.pool, budget_step=10)
-    rand = validate(make_planner("random"), trainer.pool, budget_step=10)
+    agent = validate(trainer.agent(), trainer.maps.pool, budget_step=10)
+    rand = validate(make_planner("random"), trainer.maps.pool, budget_step=10)
     # measured: 0.46 vs 0.056 (seeds 1, 2: 0.45, 0.38; an untrained network: 0.04)
     assert agent.coverage_ratio > rand.coverage_ratio + 0.15
 
@@ -220,23 +222,23 @@ def test_resume_refuses_other_pools_and_architectures(trained, tmp_path):
         check_general_resumable(out / "checkpoint.pt", state, trainer.config, other)
     changed = GeneralTrainConfig(total_updates=UPDATES, **{**TINY, "gamma": 0.9})
     with pytest.raises(CheckpointError, match="gamma"):
-        check_general_resumable(out / "checkpoint.pt", state, changed, trainer.pool)
+        check_general_resumable(out / "checkpoint.pt", state, changed, trainer.maps.pool)
     with pytest.raises(CheckpointError, match="train-general"):
         check_resumable(out / "checkpoint.pt", state, TrainConfig(), load_map("A"))
     paper = load_checkpoint(load_agent("A").metadata["source"])
     with pytest.raises(CheckpointError, match="per-map run"):
-        check_general_resumable(out / "checkpoint.pt", paper, trainer.config, trainer.pool)
+        check_general_resumable(out / "checkpoint.pt", paper, trainer.config, trainer.maps.pool)
 
 
 def test_resume_continues_and_final_eval_has_the_reference(tmp_path):
     short = {**TINY, "learning_starts": 64, "final_eval": True, "final_budget_step": 25}
-    first = GeneralTrainer(GeneralTrainConfig(total_updates=6, **short), tmp_path)
+    first = Trainer(GeneralTrainConfig(total_updates=6, **short), tmp_path)
     first.run(progress=False)
     state = load_checkpoint(tmp_path / "checkpoint.pt")
     for group in state["optimizer"]["param_groups"]:
         group["fused"] = None  # as checkpoints from before the fused Adam step recorded it
     atomic_save(state, tmp_path / "checkpoint.pt")
-    resumed = GeneralTrainer(GeneralTrainConfig(total_updates=9, **short), tmp_path)
+    resumed = Trainer(GeneralTrainConfig(total_updates=9, **short), tmp_path)
     assert resumed.resume() and resumed.updates == 6 and resumed.env_steps == first.env_steps
     assert all(group["fused"] for group in resumed.optimizer.param_groups)
     assert [(h["updates"], h["eval_coverage"]) for h in resumed.history] == [
@@ -311,7 +313,7 @@ def test_runs_from_before_the_architecture_option_still_resume(trained):
     state = load_checkpoint(out / "checkpoint.pt")
     assert state["architecture"] == "general" and state["config"]["architecture"] == "global-local"
     del state["config"]["architecture"]
-    check_general_resumable(out / "checkpoint.pt", state, trainer.config, trainer.pool)
+    check_general_resumable(out / "checkpoint.pt", state, trainer.config, trainer.maps.pool)
     fcn = GeneralTrainConfig(total_updates=UPDATES, **{**TINY, "architecture": "fcn"})
     with pytest.raises(CheckpointError, match="--architecture global-local"):
-        check_general_resumable(out / "checkpoint.pt", state, fcn, trainer.pool)
+        check_general_resumable(out / "checkpoint.pt", state, fcn, trainer.maps.pool)

@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from cpp_mujoco.agent import GENERAL_AGENT, load_agent
-from cpp_mujoco.agent.checkpoint import RESUMABLE_CHANGES, CheckpointError, load_checkpoint
+from cpp_mujoco.agent.checkpoint import CheckpointError, load_checkpoint
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.map_pool import TRAIN_SEEDS, VALIDATION_SEEDS
+from cpp_mujoco.agent.training_state import RESUMABLE_CHANGES
 from cpp_mujoco.cli.main import build_parser
 from cpp_mujoco.cli.train_general import config_from_args
 from cpp_mujoco.grid.mdp import GridMDP

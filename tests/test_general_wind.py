@@ -14,12 +14,13 @@ from cpp_mujoco.agent.checkpoint import atomic_save, load_checkpoint
 from cpp_mujoco.agent.demonstrations import record_demonstrations
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_network import GeneralQNetwork, widen_for_wind_inputs
-from cpp_mujoco.agent.general_train import GeneralTrainer, initial_general_weights
+from cpp_mujoco.agent.general_training import general_parts, initial_general_weights
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.map_pool import MapPool, padded_cell
 from cpp_mujoco.agent.network import observation_to_tensors
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.rules import ReturnMask
+from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.grid.graph import REJECTED_AFTER, build_graph
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.grid.return_rule import paid_actions, wind_allowance
@@ -163,16 +164,16 @@ TINY = {
 @pytest.fixture(scope="module")
 def wind_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("general-wind")
-    trainer = GeneralTrainer(GeneralTrainConfig(total_updates=30, **TINY), out)
+    trainer = Trainer(GeneralTrainConfig(total_updates=30, **TINY), out)
     trainer.run(progress=False)
     return out, trainer
 
 
 def test_a_wind_run_flies_in_wind_and_masks_with_its_margin(wind_run):
     _, trainer = wind_run
-    assert trainer.env.num_envs == 8 and trainer.pool.wind == trainer.config.wind
-    assert trainer.val_pool.wind == trainer.config.wind
-    assert trainer.pool.margin.gusty_sigmas == 5.0
+    assert trainer.env.num_envs == 8 and trainer.maps.pool.wind == trainer.config.wind
+    assert trainer.maps.val_pool.wind == trainer.config.wind
+    assert trainer.maps.pool.margin.gusty_sigmas == 5.0
     replay, n = trainer.replay, trainer.replay.pos
     t, e = np.divmod(np.arange(n * replay.num_envs), replay.num_envs)
     winds = np.hypot(*replay.wind[t, e].T)
@@ -190,8 +191,8 @@ def test_a_wind_agent_file_observes_the_wind_and_results_name_its_margin(wind_ru
     agent = load_agent(out / "agent.pt")
     assert agent.network.wind_inputs and agent.return_mask
     assert agent.wind_margin == ReturnMargin(gusty_sigmas=5.0)
-    config = replace(trainer.pool.configs[0], wind=_steady(9.0))
-    result = evaluate(agent, trainer.pool.maps[0], budgets=[25], config=config)
+    config = replace(trainer.maps.pool.configs[0], wind=_steady(9.0))
+    result = evaluate(agent, trainer.maps.pool.maps[0], budgets=[25], config=config)
     assert result.conditions["policy"]["wind_margin"]["gusty_sigmas"] == 5.0
     assert result.conditions["grid_config"]["wind"]["max_speed"] == 9.0
     final = json.loads((out / "final_eval.json").read_text())
@@ -205,7 +206,7 @@ def test_a_wind_agent_file_observes_the_wind_and_results_name_its_margin(wind_ru
 
 
 def test_a_wind_run_starts_from_a_calm_general_agent(wind_run, tmp_path):
-    calm = GeneralTrainer(
+    calm = Trainer(
         GeneralTrainConfig(total_updates=1, **{**TINY, "wind_max_speed": 0.0, "guide":
                            "safe-greedy", "demo_planner": "beam-search",
                            "wind_planner_sigmas": 4.0, "final_eval": False}),
@@ -214,7 +215,9 @@ def test_a_wind_run_starts_from_a_calm_general_agent(wind_run, tmp_path):
     calm.run(progress=False)
     config = GeneralTrainConfig(total_updates=1, init_from=str(tmp_path / "calm" / "agent.pt"),
                                 **TINY)  # fmt: skip
-    started = GeneralTrainer(config, tmp_path / "wind", initial_general_weights(config))
+    started = Trainer(
+        config, tmp_path / "wind", general_parts(config, initial_general_weights(config))
+    )
     obs = wind_run[1].env.observation()
     grid, scalars = observation_to_tensors(obs, 150.0, "cpu", False, True)
     grid_w, scalars_w = observation_to_tensors(obs, 150.0, "cpu", True, True)
@@ -256,10 +259,10 @@ def test_demonstrations_fly_only_maps_up_to_demo_max_side(tmp_path):
     config = GeneralTrainConfig(total_updates=1, **{**TINY, "sizes": (16, 32),
                                 "demo_max_side": 16, "named_maps": ("A",),
                                 "named_share": 0.2, "demo_budget_step": 50})  # fmt: skip
-    trainer = GeneralTrainer(config, tmp_path)
+    trainer = Trainer(config, tmp_path)
     flown = {int(m) for m in np.unique(trainer.demos.map_index)}
     assert flown == {0, 6}  # the first generated 16×16 map and the named A; not map 3, 32×32
-    assert all(trainer.pool.maps[m].shape == (16, 16) for m in flown)
+    assert all(trainer.maps.pool.maps[m].shape == (16, 16) for m in flown)
     with pytest.raises(ValueError, match="demo_max_side"):
         GeneralTrainConfig(**{**TINY, "demo_max_side": 8})
 

@@ -13,13 +13,13 @@ from cpp_mujoco.agent.checkpoint import CheckpointError, agent_payload, atomic_s
 from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_network import GeneralQNetwork, check_general_kwargs
-from cpp_mujoco.agent.general_train import GeneralTrainer
 from cpp_mujoco.agent.home_input import NO_WAY_HOME, home_field, moves_home
 from cpp_mujoco.agent.map_pool import MapPool, padded_cell
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay
 from cpp_mujoco.agent.network import check_can_start_from, observation_to_tensors
 from cpp_mujoco.agent.policy import GreedyAgent
+from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.map_sets.generator import generate_from_seed
 from cpp_mujoco.map_sets.size_classes import size_config
@@ -212,13 +212,13 @@ RUN = dict(
 def test_runs_from_before_the_option_resume_without_it(tmp_path):
     assert GeneralTrainConfig().home_input  # new runs read it
     assert not GeneralTrainConfig.from_dict({"sizes": [16]}).home_input  # stored before it
-    first = GeneralTrainer(GeneralTrainConfig(total_updates=6, home_input=False, **RUN), tmp_path)
+    first = Trainer(GeneralTrainConfig(total_updates=6, home_input=False, **RUN), tmp_path)
     assert not first.online.home_input
     first.run(progress=False)
     state = load_checkpoint(tmp_path / "checkpoint.pt")
     del state["config"]["home_input"], state["network_kwargs"]["home_input"]  # an old run
     atomic_save(state, tmp_path / "checkpoint.pt")
-    resumed = GeneralTrainer(GeneralTrainConfig(total_updates=9, **RUN), tmp_path)
+    resumed = Trainer(GeneralTrainConfig(total_updates=9, **RUN), tmp_path)
     assert resumed.online.home_input  # the default, until the checkpoint says otherwise
     assert resumed.resume() and resumed.updates == 6
     assert not resumed.config.home_input and not resumed.online.home_input
@@ -227,9 +227,7 @@ def test_runs_from_before_the_option_resume_without_it(tmp_path):
     assert load_checkpoint(tmp_path / "checkpoint.pt")["config"]["home_input"] is False
     # a run with the input cannot drop it on resume
     with_home = tmp_path / "home"
-    GeneralTrainer(GeneralTrainConfig(total_updates=3, **RUN), with_home).run(progress=False)
-    dropped = GeneralTrainer(
-        GeneralTrainConfig(total_updates=6, home_input=False, **RUN), with_home
-    )
+    Trainer(GeneralTrainConfig(total_updates=3, **RUN), with_home).run(progress=False)
+    dropped = Trainer(GeneralTrainConfig(total_updates=6, home_input=False, **RUN), with_home)
     with pytest.raises(CheckpointError, match="home_input True \\(stored\\) vs False"):
         dropped.resume()

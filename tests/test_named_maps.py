@@ -7,10 +7,11 @@ import pytest
 
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
-from cpp_mujoco.agent.general_train import GeneralTrainer, training_pool
+from cpp_mujoco.agent.general_training import training_pool
 from cpp_mujoco.agent.map_pool import NAMED_SEED, MapPool
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import record_pool_demonstrations
+from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.map_sets.generator import generate_from_seed
 from cpp_mujoco.map_sets.sets import map_set_spec
 from cpp_mujoco.maps import load_map
@@ -131,9 +132,9 @@ def test_a_run_trains_on_its_named_map_with_demonstrations(tmp_path):
                              "named_share": 0.5, "named_demo_budget_step": 5,
                              "named_demo_share": 0.5},
     )  # fmt: skip
-    trainer = GeneralTrainer(config, tmp_path)
-    a = int(trainer.pool.named[0])
-    assert trainer.pool.maps[a].label == "A" and len(trainer.pool) == 5
+    trainer = Trainer(config, tmp_path)
+    a = int(trainer.maps.pool.named[0])
+    assert trainer.maps.pool.maps[a].label == "A" and len(trainer.maps.pool) == 5
     assert a in set(trainer.demos.map_index.tolist())  # demonstrations on the named map too
     assert trainer.demos.named_share == 0.5
     trainer.run(progress=False)
@@ -149,10 +150,10 @@ def test_a_run_trains_on_every_image_of_its_named_map_and_flies_symmetric(tmp_pa
         total_updates=20, **{**TINY, "learning_starts": 64, "named_maps": ("C",),
                              "named_share": 0.5, "named_symmetries": True, "symmetric_q": True},
     )  # fmt: skip
-    trainer = GeneralTrainer(config, tmp_path)
-    images = [trainer.pool.maps[i].name for i in trainer.pool.named]
+    trainer = Trainer(config, tmp_path)
+    images = [trainer.maps.pool.maps[i].name for i in trainer.maps.pool.named]
     assert images == ["C", *(f"C~{s.name}" for s in SYMMETRIES[1:])]
-    assert set(trainer.pool.named) <= set(trainer.demos.map_index.tolist())
+    assert set(trainer.maps.pool.named) <= set(trainer.demos.map_index.tolist())
     trainer.run(progress=False)
     agent = load_agent(tmp_path / "agent.pt")
     assert agent.symmetric_q and agent.metadata["symmetric_q"]

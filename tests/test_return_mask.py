@@ -12,11 +12,12 @@ from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.ddqn import ddqn_target, mask_unsafe
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_network import GeneralQNetwork
-from cpp_mujoco.agent.general_train import GeneralTrainer, initial_general_weights
+from cpp_mujoco.agent.general_training import general_parts, initial_general_weights
 from cpp_mujoco.agent.home_input import safe_actions
 from cpp_mujoco.agent.map_pool import MapPool, padded_cell
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.rules import ReturnMask
+from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.grid.actions import LAND, MOVES
 from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.grid.mdp import GridMDP
@@ -186,7 +187,7 @@ TINY = dict(
 @pytest.fixture(scope="module")
 def masked_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("masked")
-    trainer = GeneralTrainer(GeneralTrainConfig(total_updates=40, **TINY), out)
+    trainer = Trainer(GeneralTrainConfig(total_updates=40, **TINY), out)
     trainer.run(progress=False)
     return out, trainer
 
@@ -198,7 +199,7 @@ def test_training_takes_only_safe_actions_and_masks_its_targets(masked_run):
     t, e = np.divmod(np.arange(n * replay.num_envs), replay.num_envs)
     safe = replay._safe(t, e)
     assert np.array_equal(
-        safe, trainer.pool.safe_actions(replay.map_index[t, e], replay.position[t, e],
+        safe, trainer.maps.pool.safe_actions(replay.map_index[t, e], replay.position[t, e],
                                         replay.budget[t, e])
     )  # fmt: skip
     assert safe[np.arange(t.size), replay.action[t, e]].all()  # the guide's and the agent's
@@ -221,7 +222,9 @@ def test_agent_files_carry_the_mask_and_old_ones_fly_without(masked_run, tmp_pat
 def test_results_name_the_mask_and_its_rule(masked_run):
     out, trainer = masked_run
     agent = load_agent(out / "agent.pt")
-    result = evaluate(agent, trainer.pool.maps[0], budgets=[25], config=trainer.pool.configs[0])
+    result = evaluate(
+        agent, trainer.maps.pool.maps[0], budgets=[25], config=trainer.maps.pool.configs[0]
+    )
     policy = result.conditions["policy"]
     assert policy["return_mask"] and policy["return_rule"] == RETURN_RULE
     assert "return_rule" not in evaluate(load_agent("A"), "A", budgets=[25]).conditions["policy"]
@@ -231,7 +234,7 @@ def test_init_from_starts_from_a_general_agents_weights(masked_run, tmp_path):
     out, trainer = masked_run
     config = GeneralTrainConfig(total_updates=1, init_from=str(out / "agent.pt"), **TINY)
     weights = initial_general_weights(config)
-    started = GeneralTrainer(config, tmp_path, weights)
+    started = Trainer(config, tmp_path, general_parts(config, weights))
     for a, b in zip(started.online.parameters(), trainer.online.parameters(), strict=True):
         assert torch.equal(a, b)
     wider = GeneralTrainConfig(init_from=str(out / "agent.pt"), **{**TINY, "hidden": 32})

@@ -9,7 +9,7 @@ import torch
 from cpp_mujoco.agent import CheckpointError, load_agent
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_network import GeneralQNetwork, pad_grids
-from cpp_mujoco.agent.general_train import GeneralTrainer, initial_general_weights
+from cpp_mujoco.agent.general_training import general_parts, initial_general_weights
 from cpp_mujoco.agent.network import observation_to_tensors
 from cpp_mujoco.agent.target_input import (
     _search_bits,
@@ -17,6 +17,7 @@ from cpp_mujoco.agent.target_input import (
     moves_to_unseen,
     widen_for_target_input,
 )
+from cpp_mujoco.agent.train import Trainer
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import graph_from_observation
 from cpp_mujoco.grid.mdp import GridMDP
@@ -101,21 +102,23 @@ def test_a_widened_network_flies_as_before_and_the_option_is_checked(tmp_path):
 
 
 def test_a_run_with_the_input_starts_from_a_network_without_it(tmp_path):
-    first = GeneralTrainer(GeneralTrainConfig(total_updates=10, **{**TINY, "learning_starts": 64}),
+    first = Trainer(GeneralTrainConfig(total_updates=10, **{**TINY, "learning_starts": 64}),
                            tmp_path / "plain")  # fmt: skip
     first.run(progress=False)
     options = {**TINY, "learning_starts": 64, "target_input": True}
     config = GeneralTrainConfig(total_updates=10, init_from=str(tmp_path / "plain/agent.pt"),
                                 **options)  # fmt: skip
     init = initial_general_weights(config)
-    trainer = GeneralTrainer(config, tmp_path / "wide", init)
+    trainer = Trainer(config, tmp_path / "wide", general_parts(config, init))
     obs = trainer.obs
     before = first.agent().act(obs)
     assert np.array_equal(trainer.agent().act(obs), before)  # zero weights: the same policy
     trainer.run(progress=False)
     agent = load_agent(tmp_path / "wide/agent.pt")
     assert agent.network.target_input and agent.metadata["config"]["target_input"]
-    result = evaluate(agent, trainer.pool.maps[0], budgets=[25], config=trainer.pool.configs[0])
+    result = evaluate(
+        agent, trainer.maps.pool.maps[0], budgets=[25], config=trainer.maps.pool.configs[0]
+    )
     assert result.conditions["policy"]["network"]["target_input"]  # results say which inputs
     # a file with the input cannot start a run without it
     back = GeneralTrainConfig(init_from=str(tmp_path / "wide/agent.pt"), **TINY)

@@ -5,8 +5,7 @@ Two kinds share one layout:
 * **agent** (``kind = "cpp_mujoco.agent"``): network weights (fp32), the network's shape and the
   budget input scale, the training config and metrics — the bundled ``A.pt``, ``B.pt``, ``C.pt``.
 * **training state** (``kind = "cpp_mujoco.train_state"``): the agent part plus everything needed to
-  continue a run exactly — target network, optimiser, replay memory, environment state, RNG
-  states, counters and the evaluation history.
+  continue a run exactly (:class:`~cpp_mujoco.agent.training_state.TrainingState`).
 
 Either kind holds the paper's per-map network (no ``architecture`` key, as every file before the
 general agent) or a size-independent one: ``architecture = "general"`` the global-local
@@ -31,16 +30,14 @@ import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
 import torch
 
-from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.fcn_network import ARCHITECTURE as FCN
 from cpp_mujoco.agent.fcn_network import FCNQNetwork, check_fcn_kwargs
 from cpp_mujoco.agent.general_network import ARCHITECTURE as GENERAL
 from cpp_mujoco.agent.general_network import GeneralQNetwork, check_general_kwargs
 from cpp_mujoco.agent.network import QNetwork
-from cpp_mujoco.maps import MAX_SIDE, GridMap, load_map
+from cpp_mujoco.maps import MAX_SIDE
 from cpp_mujoco.util.io import atomic_write_bytes
 
 FORMAT_VERSION = 1
@@ -249,122 +246,3 @@ def agent_payload(
         "metrics": dict(metrics or {}),
         "rules": list(rules),
     }
-
-
-# ----------------------------------------------------------------------------- training state
-# settings a resumed run may change: they schedule the run, not what it learns
-RESUMABLE_CHANGES = frozenset(
-    {"total_updates", "max_minutes", "eval_every", "eval_budget_step", "final_eval",
-     "checkpoint_every", "checkpoint_minutes", "device", "threads", "stop_after_updates"}
-)  # fmt: skip
-
-
-def _env_state(venv) -> dict:
-    """The vector env's own ``state_dict``, its arrays as tensors (``weights_only`` loads)."""
-    return {
-        k: torch.from_numpy(v) if isinstance(v, np.ndarray) else v
-        for k, v in venv.state_dict().items()
-    }
-
-
-def _load_env_state(venv, state: dict) -> None:
-    try:
-        venv.load_state_dict(
-            {k: v.numpy() if isinstance(v, torch.Tensor) else v for k, v in state.items()}
-        )
-    except ValueError as exc:
-        raise CheckpointError(
-            f"the checkpoint's environment state does not fit this run ({exc}); "
-            "it was written by another version"
-        ) from None
-
-
-def training_state(trainer) -> dict:
-    """Everything a :class:`~cpp_mujoco.agent.train.Trainer` needs to continue exactly."""
-    t = trainer
-    return {
-        **t.agent_state(),
-        "kind": TRAIN_KIND,
-        "target": t.target.state_dict(),
-        "optimizer": t.optimizer.state_dict(),
-        "replay": t.replay.state_dict(),
-        "env": _env_state(t.env.unwrapped),
-        "obs": {k: torch.from_numpy(np.array(v)) for k, v in t.obs.items()},
-        "ep_return": torch.from_numpy(t.ep_return.copy()),
-        "rng": t.rng.bit_generator.state,
-        "torch_gen": t.torch_gen.get_state(),
-        "torch_rng": torch.get_rng_state(),
-        "counters": {
-            "updates": t.updates,
-            "env_steps": t.env_steps,
-            "episodes": t.episodes,
-            "wall_s": t.wall_s,
-            "update_credit": t.update_credit,
-        },
-        "recent": [list(map(float, r)) for r in t.recent],
-        "history": t.history,
-        "best": list(t.best) if t.best else None,
-    }
-
-
-def restore_training_state(trainer, s: dict) -> None:
-    """The inverse of :func:`training_state`."""
-    if s.get("kind") != TRAIN_KIND:
-        raise CheckpointError(
-            "an agent file cannot be resumed; pass a training checkpoint (checkpoint.pt)"
-        )
-    t = trainer
-    t.online.load_state_dict(s["network"])
-    t.target.load_state_dict(s["target"])
-    t.optimizer.load_state_dict(s["optimizer"])
-    t.replay.load_state_dict(s["replay"])
-    venv = t.env.unwrapped
-    _load_env_state(venv, s["env"])
-    t.obs = {k: v.numpy().copy() for k, v in s["obs"].items()}
-    if hasattr(venv, "mdp"):  # the grid env's map: a read-only view of its one map again
-        t.obs["map"] = venv.mdp.observation()["map"]
-    t.ep_return = s["ep_return"].numpy().copy()
-    t.rng.bit_generator.state = s["rng"]
-    t.torch_gen.set_state(s["torch_gen"])
-    torch.set_rng_state(s["torch_rng"])
-    for k, v in s["counters"].items():
-        setattr(t, k, v)
-    t.recent.extend(tuple(r) for r in s["recent"])
-    t.history = list(s["history"])
-    t.best = tuple(s["best"]) if s["best"] else None
-
-
-def check_resumable(path: Path, state: dict, config: TrainConfig, grid_map: GridMap) -> None:
-    """A resume must continue the same run: the same map cells and the same learning settings
-    (only :data:`RESUMABLE_CHANGES` may differ), else :class:`CheckpointError` naming them."""
-    if is_general(state):
-        raise CheckpointError(f"{path} is a general agent's run; resume it with train-general")
-    try:
-        stored = TrainConfig.from_dict(state["config"])
-    except (TypeError, ValueError) as exc:
-        raise CheckpointError(f"{path}: its stored config is invalid ({exc})") from None
-    digest = state.get("map_digest")
-    if (digest and digest != grid_map.digest) or (
-        not digest and stored.map != config.map and load_map(stored.map).name != grid_map.name
-    ):
-        raise CheckpointError(
-            f"{path} was trained on map {state.get('map')!r} ({stored.map}), "
-            f"not on {config.map!r} (map {grid_map.label}, cells {grid_map.digest})"
-        )
-    given, old = config.to_dict(), stored.to_dict()
-    changed = [
-        f"{k} {old[k]!r} (stored) vs {given[k]!r} (given)"
-        for k in given
-        if k != "map" and k not in RESUMABLE_CHANGES and given[k] != old[k]
-    ]
-    if changed:
-        raise CheckpointError(
-            f"{path}: resume with the run's own settings; these differ: {'; '.join(changed)}"
-        )
-
-
-def initial_network(config: TrainConfig) -> QNetwork:
-    """The network of the agent ``config.init_from`` names (bundled name or file)."""
-    from cpp_mujoco.agent import load_agent  # the package imports this module
-
-    return load_agent(config.init_from).network

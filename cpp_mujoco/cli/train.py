@@ -155,6 +155,13 @@ def resume_command(args: argparse.Namespace) -> str:
 
 
 def run_train(args: argparse.Namespace) -> int:
+    return run_training(args, "train", config_from_args, resume_command(args))
+
+
+def run_training(args: argparse.Namespace, command: str, make_config, resume: str) -> int:
+    """Train the run the command line describes (``make_config(args)``), one per-map or general;
+    ``resume``: the command line that continues it after a signal."""
+    # heavy: torch, kept off --help
     from cpp_mujoco.agent.checkpoint import CheckpointError
     from cpp_mujoco.agent.run_folder import TrainingInterrupted
     from cpp_mujoco.agent.training_run import train
@@ -162,30 +169,30 @@ def run_train(args: argparse.Namespace) -> int:
 
     progress = not args.no_progress and sys.stderr.isatty()
     try:
-        config = config_from_args(args)
-        overwrite = getattr(args, "overwrite", False)
+        config = make_config(args)
         trainer = train(
-            config, args.out, resume=args.resume, overwrite=overwrite, progress=progress
+            config, args.out, resume=args.resume, overwrite=args.overwrite, progress=progress
         )
     except TrainingInterrupted as stop:
         print(
-            f"cpp-mujoco train: {stop} (agent: {stop.checkpoint.parent / 'agent.pt'})\n"
-            f"continue with: {resume_command(args)}",
+            f"cpp-mujoco {command}: {stop} (agent: {stop.checkpoint.parent / 'agent.pt'})\n"
+            f"continue with: {resume}",
             file=sys.stderr,
         )
         return 128 + stop.signum
     except (CheckpointError, MapError, ValueError, OSError) as exc:  # OSError: WriteError too
-        print(f"cpp-mujoco train: error: {exc}", file=sys.stderr)
+        print(f"cpp-mujoco {command}: error: {exc}", file=sys.stderr)
         return 2
     last = trainer.history[-1] if trainer.history else {}
+    where = f"agent in {args.out}/agent.pt (best evaluated: best.pt)"
     if last:
         print(
-            f"done: {trainer.updates} updates, {trainer.episodes} episodes, {trainer.wall_s:.0f}s; "
-            f"landing {last['eval_landing']:.4f}, coverage {last['eval_coverage']:.4f}; "
-            f"agent in {args.out}/agent.pt (best: best.pt)"
+            f"done: {trainer.updates} updates, {trainer.episodes} episodes, {trainer.wall_s:.0f}s;"
+            f" {trainer.maps.judged_on} landing {last['eval_landing']:.4f}, coverage "
+            f"{last['eval_coverage']:.4f}; {where}"
         )
     else:
-        print(f"done: {trainer.updates} updates; agent in {args.out}/agent.pt")
+        print(f"done: {trainer.updates} updates; {where}")
     return 0
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 
 from cpp_mujoco.agent.general_config import ARCHITECTURES, UNUSED, GeneralTrainConfig
 from cpp_mujoco.cli.options import TRAIN_GENERAL_HELP as HELP  # the light parser's line: the same
@@ -22,7 +21,7 @@ from cpp_mujoco.cli.settings_options import (
     given_settings,
 )
 from cpp_mujoco.cli.settings_options import resume_command as settings_resume_command
-from cpp_mujoco.cli.train import _HELP
+from cpp_mujoco.cli.train import _HELP, run_training
 
 COMMAND = "train-general"
 # the per-map trainer's physics fine-tuning is not the general agent's (its grid wind option is)
@@ -131,35 +130,4 @@ def resume_command(args: argparse.Namespace) -> str:
 
 
 def run_train_general(args: argparse.Namespace) -> int:
-    from cpp_mujoco.agent.checkpoint import CheckpointError
-    from cpp_mujoco.agent.general_train import train_general
-    from cpp_mujoco.agent.run_folder import TrainingInterrupted
-    from cpp_mujoco.maps import MapError
-
-    progress = not args.no_progress and sys.stderr.isatty()
-    try:
-        config = config_from_args(args)
-        trainer = train_general(
-            config, args.out, resume=args.resume, overwrite=args.overwrite, progress=progress
-        )
-    except TrainingInterrupted as stop:
-        print(
-            f"cpp-mujoco {COMMAND}: {stop} (agent: {stop.checkpoint.parent / 'agent.pt'})\n"
-            f"continue with: {resume_command(args)}",
-            file=sys.stderr,
-        )
-        return 128 + stop.signum
-    except (CheckpointError, MapError, ValueError, OSError) as exc:
-        print(f"cpp-mujoco {COMMAND}: error: {exc}", file=sys.stderr)
-        return 2
-    last = trainer.history[-1] if trainer.history else {}
-    where = f"agent in {args.out}/agent.pt (best on the validation maps: best.pt)"
-    if last:
-        print(
-            f"done: {trainer.updates} updates, {trainer.episodes} episodes, {trainer.wall_s:.0f}s;"
-            f" validation landing {last['eval_landing']:.4f}, coverage "
-            f"{last['eval_coverage']:.4f}; {where}"
-        )
-    else:
-        print(f"done: {trainer.updates} updates; {where}")
-    return 0
+    return run_training(args, COMMAND, config_from_args, resume_command(args))
