@@ -29,7 +29,7 @@ def test_evaluate_writes_json_and_figures(tmp_path, capsys):
 
 
 def test_maps_draws_figures(tmp_path, capsys):
-    assert main(["maps", "draw", "B", "--out", str(tmp_path)]) == 0
+    assert main(["maps", "draw", "--map", "B", "--out", str(tmp_path)]) == 0
     assert "B" in capsys.readouterr().out
     assert (tmp_path / "map_B.png").is_file()
 
@@ -40,11 +40,11 @@ def test_bad_input_is_a_message_not_a_traceback(tmp_path, capsys):
     assert "unknown map 'Z'" in err and "Traceback" not in err
     broken = tmp_path / "broken.png"
     broken.write_bytes(b"\x89PNG garbage")
-    assert main(["maps", "draw", str(broken), "--out", str(tmp_path)]) == 2
+    assert main(["maps", "draw", "--map", str(broken), "--out", str(tmp_path)]) == 2
     assert "unreadable" in capsys.readouterr().err
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    assert main(["maps", "draw", "A", "--out", str(blocker / "sub")]) == 2
+    assert main(["maps", "draw", "--map", "A", "--out", str(blocker / "sub")]) == 2
     assert "cannot create output folder" in capsys.readouterr().err
 
 

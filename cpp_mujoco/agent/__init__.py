@@ -19,6 +19,7 @@ from cpp_mujoco.agent.network import QNetwork
 from cpp_mujoco.agent.policy import GreedyAgent, MapSizeError
 from cpp_mujoco.agent.rules import make_rules, rule_metadata, rule_names_of
 from cpp_mujoco.grid.way_home import ReturnMargin
+from cpp_mujoco.maps import bundled_maps, load_map
 from cpp_mujoco.util.io import resolve_named_file
 
 BUNDLED_DIR = Path(__file__).resolve().parent / "bundled"
@@ -65,6 +66,7 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
         name=f"ddqn-{where.name}" if where.bundled else f"ddqn-{where.name} (file)",
         metadata={
             **{k: obj.get(k) for k in ("map", "config", "metrics")},
+            "map_digest": _trained_digest(obj),
             **{k: obj[k] for k in ("train_maps", "validation_maps") if k in obj},  # general
             "architecture": obj.get("architecture", "paper"),
             **rule_metadata(names),
@@ -74,6 +76,17 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
         },
         rules=make_rules(names, wind_margin),
     )
+
+
+def _trained_digest(obj: dict) -> str | None:
+    """The cells the agent was trained on: its file's ``map_digest``; a file from before the
+    digest names a bundled map, whose digest it is; None when unknown (a general agent)."""
+    if obj.get("map_digest"):
+        return obj["map_digest"]
+    name = obj.get("map")
+    if isinstance(name, str) and name in bundled_maps():
+        return load_map(name).digest
+    return None
 
 
 def _wind_margin(sigmas, path) -> ReturnMargin | None:

@@ -21,6 +21,7 @@ from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.agent.rules import ReturnMask, Rule, make_rules, rule_metadata, rules_identity
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.way_home import ReturnMargin
+from cpp_mujoco.maps import GridMap
 from cpp_mujoco.protocol.policy import as_batch
 
 FORWARD_CELLS = 2**20  # observations per forward pass × map cells: caps the conv activations
@@ -117,6 +118,20 @@ class GreedyAgent:
             )
             parts.append(self.network(grid, scalars).cpu().numpy())
         return np.concatenate(parts)
+
+    def fits(self, grid_map: GridMap) -> str | None:
+        """Why this agent does not fit ``grid_map`` (None if it does): a per-map agent flies only
+        the map it was trained on (its file's ``map_digest``); a general agent flies any map.
+        The protocol refuses the misfit unless the user says so (``any_map``)."""
+        trained = self.metadata.get("map_digest")
+        if self.metadata.get("architecture", "paper") != "paper" or not trained:
+            return None
+        if trained == grid_map.digest:
+            return None
+        return (
+            f"agent {self.name} was trained on map {self.metadata.get('map')!r} (cells "
+            f"{trained}), not on map {grid_map.label} (cells {grid_map.digest})"
+        )
 
     def identity(self) -> dict[str, Any]:
         """What results record of this agent (:func:`~cpp_mujoco.protocol.policy.policy_identity`):

@@ -4,10 +4,14 @@ in the grid or in MuJoCo (locally or on Ray), into tables, figures and their JSO
 
 from __future__ import annotations
 
+import itertools
+
 from cpp_mujoco.cli.maps import add_map_set_options, agent_entry, cmd_evaluate_map_set
 from cpp_mujoco.cli.options import (
     DEFAULT_PLANNERS,
     PLANNER_NAMES,
+    add_any_map_option,
+    add_cell_pixels_option,
     add_progress_option,
     add_rule_option,
     add_solver_options,
@@ -45,7 +49,6 @@ def cmd_evaluate(args) -> None:
     from cpp_mujoco.maps import bundled_maps, load_map
     from cpp_mujoco.missions.lineup import run_evaluation
     from cpp_mujoco.planners import make_planner
-    from cpp_mujoco.protocol.evaluate import protocol_budgets
 
     weather = weather_options(args)  # checked before anything is loaded or written
     check_rules(args)
@@ -58,7 +61,7 @@ def cmd_evaluate(args) -> None:
         if not args.map_set:
             raise ValueError("--first needs --map-set")
         return cmd_evaluate_map_set(args, DEFAULT_PLANNERS, weather, runtime)
-    grid_maps = [load_map(spec) for spec in args.map or bundled_maps()]
+    grid_maps = [load_map(spec, args.cell_pixels) for spec in args.map or bundled_maps()]
     for spec in args.agent:
         check_agent_file(spec)
     if not args.planner and not args.agent:
@@ -66,11 +69,16 @@ def cmd_evaluate(args) -> None:
     policies = [(name, make_planner(name, optimal=optimal_options(args))) for name in args.planner]
     if args.agent:
         from cpp_mujoco.agent import load_agent
+        from cpp_mujoco.protocol.policy import check_fits
 
-        policies += [agent_entry(s, load_agent(s), args.rule) for s in args.agent]
+        agents = [agent_entry(s, load_agent(s), args.rule) for s in args.agent]
+        for (_, agent), grid_map in itertools.product(agents, grid_maps):  # before anything flies
+            check_fits(agent, grid_map, args.any_map)
+        policies += agents
     out = out_dir(args.out)
     extra: dict = {"progress": progress_wanted(args)}
-    extra["budgets"] = protocol_budgets(step=args.budget_step)
+    extra["budget_step"] = args.budget_step  # of each map's size class
+    extra["any_map"] = args.any_map
     extra["optimum"] = args.optimum
     if args.backend == "mujoco":
         extra.update(workers=args.workers, env_kwargs=weather)
@@ -83,6 +91,7 @@ def cmd_evaluate(args) -> None:
 def add_evaluate(sub) -> None:
     p = sub.add_parser("evaluate", help="run the paper's protocol for planners and agents")
     p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
+    add_cell_pixels_option(p)
 
     add_map_set_options(p)
     p.add_argument(
@@ -94,14 +103,15 @@ def add_evaluate(sub) -> None:
         help="trained agents: a bundled agent name (A) or a checkpoint file",
     )  # fmt: skip
     add_rule_option(p)
+    add_any_map_option(p)
     p.add_argument(
         "--backend", default="grid", choices=["grid", "mujoco"],
         help="simulate on the grid or fly in MuJoCo (default: %(default)s)",
     )  # fmt: skip
     p.add_argument(
         "--budget-step", type=int_at_least(1), default=1,
-        help="every n-th budget of 25..75 (a map set: its size class's), the largest always "
-        "included (default: %(default)s, all)",
+        help="every n-th budget of each map's size class (16x16: 25..75, 32x32: 50..150), the "
+        "largest always included (default: %(default)s, all)",
     )  # fmt: skip
     add_workers_option(p)
     p.add_argument(

@@ -6,6 +6,8 @@ import sys
 
 from cpp_mujoco.cli.options import (
     PLANNER_NAMES,
+    add_any_map_option,
+    add_cell_pixels_option,
     add_progress_option,
     add_wind_options,
     check_output_file,
@@ -30,7 +32,7 @@ def cmd_fly(args) -> None:
     from cpp_mujoco.maps import load_map
 
     weather = weather_options(args)  # checked before anything is loaded or written
-    grid_map = load_map(args.map)
+    grid_map = load_map(args.map, args.cell_pixels)
     start = _parse_start(args.start)
     for option, suffix in (("rrd", ".rrd"), ("video", ".mp4"), ("onboard_video", ".mp4")):
         check_output_file("--" + option.replace("_", "-"), getattr(args, option), suffix)
@@ -44,8 +46,9 @@ def cmd_fly(args) -> None:
         policy = load_agent_for(grid_map.name, grid_map)
     else:
         raise ValueError(
-            f"map {grid_map.label!r} is not a bundled map, so it has no default agent; "
-            "give --agent CHECKPOINT or --planner NAME"
+            f"map {grid_map.label!r} is not a bundled map, so it has no agent of its own; "
+            "fly the general agent (--agent general, any map), a checkpoint (--agent FILE) or "
+            "a planner (--planner NAME)"
         )
     if (args.video or args.onboard_video or args.rrd) and args.backend == "mujoco":
         from cpp_mujoco.physics.view.rendering import configure_gl
@@ -57,7 +60,7 @@ def cmd_fly(args) -> None:
     outcome = fly_mission(
         policy, grid_map, budget=args.budget, start=start, backend=args.backend, seed=args.seed,
         rrd=args.rrd, video=args.video, onboard_video=args.onboard_video,
-        progress=progress_wanted(args), **extra,
+        progress=progress_wanted(args), any_map=args.any_map, **extra,
     )  # fmt: skip
     result = "landed" if outcome.landed else f"CRASHED ({outcome.crash_reason})"
     print(
@@ -70,18 +73,22 @@ def cmd_fly(args) -> None:
             f"flight {outcome.flight_time_s:.1f} s, energy {outcome.energy_used_j / 1000:.2f} kJ, "
             f"no-fly violations {outcome.nfz_violations}, wall time {outcome.wall_time_s:.1f} s"
         )
+    if "rrd" in outcome.files:
+        from cpp_mujoco.review.recording_tools import open_command
     for kind, path in outcome.files.items():
-        hint = f"   (open with: rerun {path})" if kind == "rrd" else ""
+        hint = f"   (open with: {open_command(path)})" if kind == "rrd" else ""
         print(f"{kind}: {path}{hint}")
 
 
 def add_fly(sub) -> None:
     p = sub.add_parser("fly", help="fly one mission; write a Rerun recording and videos")
     p.add_argument("--map", default="A", help="bundled map name or PNG path (default: A)")
+    add_cell_pixels_option(p)
     p.add_argument(
         "--agent", help="bundled agent name or checkpoint file (default: a bundled map's agent)"
     )
     p.add_argument("--planner", choices=PLANNER_NAMES, help="fly a reference planner instead")
+    add_any_map_option(p)
     p.add_argument(
         "--budget", type=int_at_least(1), default=40, help="movement budget (default: 40)"
     )

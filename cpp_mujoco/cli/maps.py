@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from cpp_mujoco.cli.options import (
+    add_cell_pixels_option,
     check_agent_file,
     int_at_least,
     optimal_options,
@@ -217,8 +218,8 @@ def cmd_draw(args) -> None:
     from cpp_mujoco.review.results import file_part
     from cpp_mujoco.util.tables import format_table
 
-    specs = getattr(args, "maps", None) or bundled_maps()
-    grid_maps = [load_map(spec) for spec in specs]  # all checked first
+    specs = getattr(args, "map", None) or bundled_maps()
+    grid_maps = [load_map(s, getattr(args, "cell_pixels", None)) for s in specs]  # checked first
     out = out_dir(getattr(args, "out", None) or "out/maps")
     rows = []
     for grid_map in grid_maps:
@@ -243,7 +244,10 @@ def add_maps(sub) -> None:
         dest="maps_command", metavar="{draw,generate}", help="draw (the default) or generate"
     )
     draw = kinds.add_parser("draw", help="draw maps as the paper's colour figure, list cell counts")
-    draw.add_argument("maps", nargs="*", help="bundled names or PNG paths (default: all bundled)")
+    draw.add_argument(
+        "--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)"
+    )
+    add_cell_pixels_option(draw)
     draw.add_argument("--out", help="folder for the figures (default: out/maps)")
     draw.set_defaults(func=cmd_draw)
     generate = kinds.add_parser("generate", help="write random maps in the paper's style as PNGs")

@@ -95,6 +95,21 @@ def load_agent_for(spec: str, grid_map):
     return agent
 
 
+def add_cell_pixels_option(p) -> None:
+    p.add_argument(
+        "--cell-pixels", type=int_at_least(1), metavar="N",
+        help="a PNG map's pixels per cell side (default: one; an image obviously drawn at "
+        "several is refused, naming N)",
+    )  # fmt: skip
+
+
+def add_any_map_option(p) -> None:
+    p.add_argument(
+        "--any-map", action="store_true",
+        help="fly an agent on a map it was not trained on (refused otherwise; results say so)",
+    )  # fmt: skip
+
+
 def add_progress_option(p) -> None:
     p.add_argument(
         "--no-progress",

@@ -44,6 +44,7 @@ def run_demo(
     command line shown atop ``index.html`` (default: this process's own)."""
     from cpp_mujoco.missions.mission import fly_mission
     from cpp_mujoco.review.plots import coverage_figure, trajectories_figure
+    from cpp_mujoco.review.recording_tools import open_command
     from cpp_mujoco.review.report import invocation, write_report
 
     grid_maps = [load_map(m) for m in maps or bundled_maps()]
@@ -101,4 +102,4 @@ def run_demo(
             print(f"    {kind:14s} {path}")
     report = write_report(out, command or invocation())
     print(f"\nEverything is in {out}/ ({time.perf_counter() - started:.0f} s); the page: {report}")
-    print(f"Open a recording with:  rerun {missions[0].files['rrd']}")
+    print(f"Open a recording with:  {open_command(missions[0].files['rrd'])}")

@@ -30,7 +30,7 @@ from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.protocol.episode import run_episode
-from cpp_mujoco.protocol.policy import policy_name
+from cpp_mujoco.protocol.policy import check_fits, policy_name
 
 # the grid backend's clock in the recording: one nominal move per action
 GRID_ACTION_S = PhysicsConfig().move_duration
@@ -78,6 +78,7 @@ def fly_mission(
     image_every: int = 2,
     progress: bool = False,
     on_chase_frame: Callable[[np.ndarray], None] | None = None,
+    any_map: bool = False,
     **env_kwargs: Any,
 ) -> MissionOutcome:
     """Fly one episode greedily with ``policy`` (anything with batched ``act``).
@@ -87,6 +88,8 @@ def fly_mission(
     ``image_every``: log every n-th camera frame to the recording. ``on_chase_frame``: also gets
     every HUD-ed chase frame, the last one with the outcome (MuJoCo only).
     ``env_kwargs`` go to the env (``wind_speed=6`` …). ``progress``: a tqdm bar over actions.
+    A policy that does not fit the map (an agent trained on another map) is refused
+    (:class:`~cpp_mujoco.protocol.policy.MapMismatchError`) unless ``any_map``.
     """
     from tqdm import tqdm
 
@@ -94,6 +97,7 @@ def fly_mission(
     from cpp_mujoco.review.recording import MissionRecorder
 
     grid_map = load_map(map)
+    check_fits(policy, grid_map, any_map)
     if start is None:
         start = tuple(int(v) for v in np.argwhere(grid_map.landing)[0])
     env_id = {"mujoco": "cpp_mujoco/MuJoCo-v0", "grid": "cpp_mujoco/Grid-v0"}.get(backend)

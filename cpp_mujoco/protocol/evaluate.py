@@ -22,11 +22,12 @@ import numpy as np
 
 from cpp_mujoco.grid.graph import coverage_upper_bound, coverage_upper_bounds
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.map_sets.size_classes import map_size, size_config
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.protocol.episode import OnBatchStep, run_batch
 from cpp_mujoco.protocol.optimum import optimum_of, optimum_summary
 from cpp_mujoco.protocol.physics_engines import ENGINES  # what carries MuJoCo episodes
-from cpp_mujoco.protocol.policy import Policy, as_policy, policy_identity
+from cpp_mujoco.protocol.policy import Policy, as_policy, check_fits, policy_identity
 from cpp_mujoco.protocol.policy import policy_name as policy_label
 from cpp_mujoco.util.io import atomic_write_text, json_default
 
@@ -159,6 +160,7 @@ def evaluate(
     *,
     backend: str = "grid",
     budgets: Iterable[int] | None = None,
+    budget_step: int = 1,
     config: GridConfig | None = None,
     policy_name: str | None = None,
     workers: int | None = None,
@@ -169,8 +171,11 @@ def evaluate(
     engine: str = "local",
     ray_address: str | None = None,
     optimum: str | os.PathLike | None = None,
+    any_map: bool = False,
 ) -> EvaluationResult:
-    """Run the full protocol for ``policy`` on ``map``; budgets default to the config's range.
+    """Run the full protocol for ``policy`` on ``map``; budgets default to the config's range
+    (every ``budget_step``-th, the largest always included), and the config to the map's size
+    class (16 → 25..75, 32 → 50..150: :func:`~cpp_mujoco.map_sets.size_classes.size_config`).
 
     ``policy``: anything with batched ``act`` (optionally ``reset``), an SB3 model (its
     ``predict``, through :class:`~cpp_mujoco.protocol.policy.SB3Policy`) or a plain callable.
@@ -182,6 +187,9 @@ def evaluate(
     the backend does not know is an error.
     ``on_step(observation, actions, outcome, active)`` (grid only, one chunk) sees every batched
     step — the agent's demonstrations are recorded through it. ``progress``: a tqdm bar.
+    A policy that says it does not fit the map (an agent trained on another map) is refused with
+    :class:`~cpp_mujoco.protocol.policy.MapMismatchError` unless ``any_map``; then the result's
+    conditions say so (``off_its_map``).
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; available: {', '.join(BACKENDS)}")
@@ -192,15 +200,20 @@ def evaluate(
     _check_engine(backend, engine, ray_address)
     policy = as_policy(policy)
     grid_map = load_map(map)
+    off_its_map = check_fits(policy, grid_map, any_map)
+    if config is None:  # the map's size class
+        config = size_config(map_size(grid_map.shape))
     config, physics_kwargs = _split_options(backend, config, env_kwargs)
     if budgets is None:
-        budgets = protocol_budgets(config)
+        budgets = protocol_budgets(config, budget_step)
     starts, budget_per_episode = protocol_episodes(grid_map, budgets)
     if budget_per_episode.size == 0:
         raise ValueError("no budgets to evaluate")
     name = policy_name or policy_label(policy)
     bounds = coverage_upper_bounds(grid_map, budget_per_episode, config.fov_side)
     conditions = _conditions(backend, budget_per_episode, config, physics_kwargs)
+    if off_its_map:
+        conditions["off_its_map"] = off_its_map
     if backend == "mujoco":
         outcome = _run_physics(
             policy, grid_map, starts, budget_per_episode, config, physics_kwargs, workers,

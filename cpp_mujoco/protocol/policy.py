@@ -31,6 +31,21 @@ class Policy(Protocol):
         """Actions (N,) for a batch of observations with leading dimension N."""
 
 
+class MapMismatchError(ValueError):
+    """A policy flown on a map it was not made for (e.g. an agent trained on another map)."""
+
+
+def check_fits(policy: Any, grid_map: Any, any_map: bool = False) -> str | None:
+    """Refuse a policy that says it does not fit ``grid_map``: a policy may offer
+    ``fits(grid_map)``, returning why it does not (None: it does). :class:`MapMismatchError`
+    naming both maps, unless ``any_map``; then the reason is returned, for results to record."""
+    fits = getattr(policy, "fits", None)
+    reason = fits(grid_map) if callable(fits) else None
+    if reason and not any_map:
+        raise MapMismatchError(f"{reason}; pass any_map=True (--any-map) to fly it there anyway")
+    return reason or None
+
+
 def start_episodes(policy: Any, num_episodes: int, seed: int | None = None) -> None:
     """Tell ``policy`` that ``num_episodes`` new episodes start (the batch of its next ``act``).
 

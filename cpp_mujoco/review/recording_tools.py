@@ -8,6 +8,7 @@ the wind the flight actually drew.
 
 from __future__ import annotations
 
+import shlex
 import shutil
 import subprocess
 import sys
@@ -69,6 +70,23 @@ def rerun_cli() -> str:
     if found is None:
         raise FileNotFoundError("the rerun command is not installed (pip install rerun-sdk)")
     return found
+
+
+def open_command(path: str | Path) -> str:
+    """The command line that opens a recording on this machine: ``rerun PATH`` when that is this
+    environment's ``rerun``, else the script beside the interpreter (``.venv/bin/rerun PATH``)."""
+    try:
+        cli = Path(rerun_cli())
+    except FileNotFoundError as e:
+        return f"{e}; then: rerun {path}"
+    on_path = shutil.which("rerun")
+    if on_path and Path(on_path).resolve() == cli.resolve():
+        return shlex.join(["rerun", str(path)])
+    try:
+        shown = str(cli.absolute().relative_to(Path.cwd()))
+    except ValueError:  # outside the working directory: the whole path
+        shown = str(cli)
+    return shlex.join([shown, str(path)])
 
 
 def compact(path: str | Path) -> bool:
