@@ -155,11 +155,14 @@ def test_evaluate_flies_an_agent_with_symmetric_q_and_names_it(tmp_path, capsys)
 
     args = ["evaluate", "--map", "B~rot90", "--agent", "B", "--budget-step", "25"]
     assert main([*args, "--rule", "+symmetric-q", "--out", str(tmp_path)]) == 0
-    assert main([*args, "--out", str(tmp_path)]) == 0
+    assert "symmetric" in capsys.readouterr().out
+    # without the rule the turned map is another map: flown only when asked
+    assert main([*args, "--out", str(tmp_path)]) == 2
+    assert "not on map B~rot90" in capsys.readouterr().err
+    assert main([*args, "--any-map", "--out", str(tmp_path)]) == 0
     files = sorted(p.name for p in tmp_path.glob("*ddqn*.json"))
     assert files == ["grid_B_rot90_ddqn_B.json", "grid_B_rot90_ddqn_B_rules_symmetric-q.json"]
     data = {name: json.loads((tmp_path / name).read_text()) for name in files}
     symmetric = [d for d in data.values() if "symmetric" in str(d["policy"])]
     assert len(symmetric) == 1 and "d4-mean" in json.dumps(symmetric[0])
     assert symmetric[0]["map"] == "B~rot90" and symmetric[0]["episodes"] == 8 * 3
-    assert "symmetric" in capsys.readouterr().out

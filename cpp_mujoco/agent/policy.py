@@ -19,9 +19,11 @@ from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.agent.rules import ReturnMask, Rule, make_rules, rule_metadata, rules_identity
+from cpp_mujoco.agent.rules.symmetric_q import SymmetricQ
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.maps.symmetry import map_images
 from cpp_mujoco.protocol.policy import as_batch
 
 FORWARD_CELLS = 2**20  # observations per forward pass × map cells: caps the conv activations
@@ -121,13 +123,16 @@ class GreedyAgent:
 
     def fits(self, grid_map: GridMap) -> str | None:
         """Why this agent does not fit ``grid_map`` (None if it does): a per-map agent flies only
-        the map it was trained on (its file's ``map_digest``); a general agent flies any map.
+        the map it was trained on (its file's ``map_digest``) — with the symmetric-Q rule also
+        that map turned or mirrored; a general agent flies any map.
         The protocol refuses the misfit unless the user says so (``any_map``)."""
         trained = self.metadata.get("map_digest")
         if self.metadata.get("architecture", "paper") != "paper" or not trained:
             return None
         if trained == grid_map.digest:
             return None
+        if self._has(SymmetricQ.name) and trained in {m.digest for m in map_images(grid_map)}:
+            return None  # it reads the map in its trained orientation too, among the 8 images
         return (
             f"agent {self.name} was trained on map {self.metadata.get('map')!r} (cells "
             f"{trained}), not on map {grid_map.label} (cells {grid_map.digest})"
