@@ -33,9 +33,10 @@ def test_the_report_names_its_set_policy_and_counts(capsys, monkeypatch):
         return flown[-1]
 
     monkeypatch.setattr(agent_loops, "evaluate", some_budgets)
-    assert agent_loops.main(["--map-set", "heldout16-v1", "--first", "1", "--agent", "A"]) == 0
+    argv = ["--map-set", "heldout16-v1", "--first", "1", "--agent", "general"]
+    assert agent_loops.main(argv) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["map_set"]["name"] == "heldout16-v1" and report["map_set"]["evaluated"] == 1
-    assert report["policy"] == "ddqn-A" and report["digest"]
+    assert report["policy"] == "ddqn-general" and report["digest"]
     assert 0 <= report["cycling_episodes"] <= report["episodes"] == flown[0].landed.size > 0
     assert report["worst_maps"][0]["map"] == "gen16-s1000000"

@@ -75,8 +75,9 @@ def test_wind_agents_train_on_the_grid_then_in_physics(tmp_path, monkeypatch):
         out.mkdir(parents=True, exist_ok=True)
         for name in ("checkpoint.pt", "final_eval.json"):
             (out / name).write_text("")
+        trained_on = cmd[cmd.index("--map") + 1]  # an agent of the run's own map
         for name in ("best.pt", "agent.pt"):
-            shutil.copyfile(BUNDLED_DIR / "B-wind.pt", out / name)
+            shutil.copyfile(BUNDLED_DIR / f"{trained_on}-wind.pt", out / name)
         return 0
 
     monkeypatch.setattr(module, "_train", fake_train)

@@ -161,7 +161,8 @@ def test_load_state_dict_refuses_a_state_that_does_not_fit_and_changes_nothing(e
 def test_a_checkpoint_env_state_that_does_not_fit_is_a_checkpoint_error():
     import torch
 
-    from cpp_mujoco.agent.checkpoint import CheckpointError, _load_env_state
+    from cpp_mujoco.agent.checkpoint import CheckpointError
+    from cpp_mujoco.agent.training_state import load_env_state
 
     three = GridVectorEnv(num_envs=3, map="C")
     three.reset(seed=0)
@@ -169,7 +170,7 @@ def test_a_checkpoint_env_state_that_does_not_fit_is_a_checkpoint_error():
              for k, v in three.state_dict().items()}  # fmt: skip
     four = GridVectorEnv(num_envs=4, map="C")
     with pytest.raises(CheckpointError, match="environment state does not fit"):
-        _load_env_state(four, saved)
+        load_env_state(four, saved)
     other = GridVectorEnv(num_envs=3, map="C")
-    _load_env_state(other, saved)  # as a training checkpoint stores it: tensors in, arrays out
+    load_env_state(other, saved)  # as a training checkpoint stores it: tensors in, arrays out
     np.testing.assert_array_equal(other.state_dict()["coverage"], three.state_dict()["coverage"])
