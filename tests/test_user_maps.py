@@ -119,3 +119,11 @@ def test_the_recording_hint_is_a_command_that_runs_here(monkeypatch, tmp_path):
     assert exe != "rerun" and str(script).endswith(exe)
     monkeypatch.setattr(recording_tools.shutil, "which", lambda name: script)
     assert recording_tools.open_command("a.rrd") == "rerun a.rrd"
+
+
+def test_a_result_prints_as_its_figures_not_its_arrays():
+    result = evaluate(make_planner("safe-greedy"), "C", budget_step=25)
+    text = repr(result)
+    assert text.startswith("EvaluationResult(map C (") and "safe-greedy" in text
+    assert f"{result.landed.size} episodes" in text and "landing 100.00%" in text
+    assert len(text) < 200 and "array" not in text

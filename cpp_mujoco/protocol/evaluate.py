@@ -74,6 +74,13 @@ class EvaluationResult:
     optimum: dict[str, np.ndarray] = field(default_factory=dict)  # per-episode best missions
     conditions: dict[str, Any] = field(default_factory=dict)
 
+    def __repr__(self) -> str:  # the per-episode arrays would bury the figures
+        return (
+            f"EvaluationResult(map {self.map_name} ({self.grid_map.digest}), policy "
+            f"{self.policy_name!r}, {self.backend}, {self.landed.size} episodes: landing "
+            f"{self.landing_ratio:.2%}, coverage {self.coverage_ratio:.2%})"
+        )
+
     @property
     def map_name(self) -> str:
         """The map's label: a user's ``A.png`` is ``A-<digest>``, never the bundled A."""

@@ -50,6 +50,14 @@ class MapSetResult:
     rows: list[dict] = field(default_factory=list)  # one per map and policy
     backend: str = "grid"
 
+    def __repr__(self) -> str:  # the maps and rows would bury the figures
+        means = ", ".join(
+            f"{s['policy']}: landing {s['mean_landing_ratio']:.2%}, coverage "
+            f"{s['mean_coverage_ratio']:.2%}"
+            for s in self.summary()
+        )
+        return f"MapSetResult({self.spec.name}, {len(self.maps)} maps, {self.backend}; {means})"
+
     @property
     def policies(self) -> list[str]:
         return list(dict.fromkeys(r["policy"] for r in self.rows))
