@@ -12,6 +12,7 @@ from cpp_mujoco.cli.options import (
 
 
 def cmd_optimum(args) -> None:
+    from cpp_mujoco.map_sets.size_classes import map_size, size_config
     from cpp_mujoco.maps import bundled_maps, load_map
     from cpp_mujoco.planners.optimal import solve_episodes
     from cpp_mujoco.protocol.evaluate import protocol_budgets, protocol_episodes
@@ -19,10 +20,12 @@ def cmd_optimum(args) -> None:
     from cpp_mujoco.review.optimum_table import optimum_summary
 
     grid_maps = [load_map(spec) for spec in args.map or bundled_maps()]
-    budgets = protocol_budgets(step=args.budget_step)
     kwargs = optimal_options(args)
-    caches = [OptimumCache(args.optimum, m) for m in grid_maps]  # a bad file fails before solving
+    folder = kwargs["cache_folder"]
+    caches = [OptimumCache(folder, m) for m in grid_maps]  # a bad file fails before solving
     for grid_map, cache in zip(grid_maps, caches, strict=True):
+        config = size_config(map_size(grid_map.shape))  # the map's size class
+        budgets = protocol_budgets(config, args.budget_step)
         starts, per_episode = protocol_episodes(grid_map, budgets)
         if args.first:
             starts, per_episode = starts[: args.first], per_episode[: args.first]
@@ -41,7 +44,8 @@ def add_optimum(sub) -> None:
     p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
     p.add_argument(
         "--budget-step", type=int_at_least(1), default=1,
-        help="every n-th budget of 25..75, the largest always included (default: %(default)s)",
+        help="every n-th budget of each map's size class (16x16: 25..75), the largest always "
+        "included (default: %(default)s)",
     )  # fmt: skip
     p.add_argument(
         "--first", type=int_at_least(1), help="only the protocol's first N episodes of each map"

@@ -198,10 +198,18 @@ def add_solver_options(p) -> None:
         help="episodes solved at once, one process each (default: %(default)s)",
     )  # fmt: skip
     p.add_argument(
-        "--optimum", default=DEFAULT_CACHE, metavar="DIR",
+        "--optimum", metavar="DIR",
         help="the solved episodes' cache, one JSON file per map digest: read, and written by "
-        "what is solved (default: %(default)s)",
+        f"what is solved (default: the committed one, {DEFAULT_CACHE} of the checkout or the "
+        "installed package's copy)",
     )  # fmt: skip
+
+
+def optimum_folder(args) -> str:
+    """``--optimum``, else the committed cache wherever the package runs from."""
+    from cpp_mujoco.protocol.optimum import default_folder
+
+    return args.optimum or str(default_folder() or DEFAULT_CACHE)
 
 
 def optimal_options(args) -> dict:
@@ -211,7 +219,7 @@ def optimal_options(args) -> dict:
     options = SolverOptions(
         time_limit_s=args.time_limit, workers=args.solver_workers, solver=args.solver
     )
-    return {"options": options, "cache_folder": args.optimum, "jobs": args.jobs}
+    return {"options": options, "cache_folder": optimum_folder(args), "jobs": args.jobs}
 
 
 def add_rule_option(p) -> None:

@@ -14,16 +14,21 @@ from pathlib import Path
 import numpy as np
 
 from cpp_mujoco.protocol.optimum_cache import OptimumCache
-from cpp_mujoco.util.resources import repository_dir
+from cpp_mujoco.util.resources import bundled_dir, repository_dir
 
 DEFAULT_FOLDER = "results/optimum"
 
 
 def default_folder() -> Path | None:
-    """The committed cache of a checkout (None in an installed wheel without one)."""
+    """The committed cache: a checkout's ``results/optimum``, else the copy an installed wheel
+    carries (None without either)."""
     root = repository_dir()
-    folder = None if root is None else root / DEFAULT_FOLDER
-    return folder if folder is not None and folder.is_dir() else None
+    if root is not None and (root / DEFAULT_FOLDER).is_dir():
+        return root / DEFAULT_FOLDER
+    try:
+        return bundled_dir("optimum")
+    except FileNotFoundError:
+        return None
 
 
 def optimum_of(

@@ -9,8 +9,11 @@ _PACKAGE = Path(__file__).resolve().parents[1]
 
 
 def bundled_dir(kind: str) -> Path:
-    """The folder of bundled ``kind`` data (``"maps"``, ``"assets"``)."""
-    for candidate in (_PACKAGE.parent / kind, _PACKAGE / "_bundled" / kind):
+    """The folder of bundled ``kind`` data (``"maps"``, ``"assets"``, ``"optimum"``): a
+    checkout's top-level folder, else the wheel's copy (never a stranger's folder of that name
+    beside an installed package)."""
+    root = repository_dir()
+    for candidate in ([root / kind] if root else []) + [_PACKAGE / "_bundled" / kind]:
         if candidate.is_dir():
             return candidate
     raise FileNotFoundError(f"bundled folder {kind!r} not found next to {_PACKAGE}")
