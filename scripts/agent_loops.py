@@ -6,7 +6,7 @@ flies a two-cell cycle (or hovers) for at least ``--min-steps`` steps in a row.
 Why: a deterministic greedy policy in a state that differs from an earlier one only by the
 budget repeats itself, and a cycle never sees a new cell after its first pass — the general
 agent's largest coverage losses on unseen maps are such cycles near its start (docs/agent.md,
-"What is weak"). A fix (an input of the cells visited, a recurrent network) is measured by this
+"Known limits"). A fix (an input of the cells visited, a recurrent network) is measured by this
 number going down. Grid backend, every landing cell × every budget of the size class.
 """
 

@@ -2,7 +2,8 @@
 # Sets up everything cpp_mujoco needs on a fresh Debian/Ubuntu machine; safe to run again.
 #   - system libraries for offscreen OpenGL (EGL and OSMesa), when run as root
 #   - chromium (headless), when run as root: tests/test_report.py opens the results page in it
-#   - a virtual environment in .venv with the package, its pinned dependencies, dev tools and Ray
+#   - a virtual environment in .venv with the package, its pinned dependencies, dev tools, Ray and
+#     the documentation site's tools (mkdocs)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -39,6 +40,6 @@ PYTHON=${PYTHON:-python3}
 [ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
 # torch first, pinned: the CPU build; any other spec pulls gigabytes of CUDA packages
 .venv/bin/python -m pip install -q --disable-pip-version-check torch==2.13.0
-# ray: the optional distributed engine, installed here so its tests run
-.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[dev,ray]"
+# ray: the optional distributed engine, installed here so its tests run; docs: the site CI builds
+.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[dev,ray,docs]"
 echo "setup: ready (.venv)"

@@ -52,7 +52,7 @@ WIND_STAGES = [  # (folder suffix, seed offset, options)
 # per map, from stage 2 on: the margin the wind planners keep as guide and demonstrator (the
 # agent learns the margin its teachers keep) and the physics run's calm share. 4σ lands A and C
 # ≥ 99.5 % at the rated wind; B's gust peaks take 6σ; half the slots calm kept B's and C's calm
-# landings at 100 % where a fifth or a third did not always (docs/agent.md, "Session 9")
+# landings at 100 % where a fifth or a third did not always (CHANGELOG.md, the training record)
 WIND_MARGIN = {"A": ("4.0", "0.2"), "B": ("6.0", "0.5"), "C": ("4.0", "0.5")}
 # then the grid agent fine-tuned in MuJoCo (the updates each bundled agent had): the map's calm
 # share of the 64 slots calm, the rest at the rated wind from N/E/S/W; a small learning rate and

@@ -21,7 +21,7 @@ at the observed wind), guided by ``safe-greedy-wind`` and taught by ``beam-searc
 16×16 maps (the wind planners take minutes a 32×32 map) for 12,000 updates; its ``best.pt``
 (chosen on landing in wind) is ``general-wind`` (``--install`` copies it to ``general-wind.pt``).
 Run again, the script resumes a stage whose folder holds a ``checkpoint.pt`` and skips a
-finished one (docs/agent.md, "One agent for any map").
+finished one (docs/agent.md, "The general agent").
 """
 
 from __future__ import annotations

@@ -111,24 +111,24 @@ def test_unknown_benchmark_section_is_one_line_before_anything_runs(tmp_path, ca
 
 
 # ------------------------------------------------------------------------- the docs' file map
-def _layout_rows() -> list[tuple[str, list[str]]]:
-    """README's Layout table: (first path of the row, every backticked name in the row)."""
+def _layout_rows(path: str, heading: str) -> list[tuple[str, list[str]]]:
+    """A layout table: (first path of the row, every backticked name in the row)."""
     import re
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
-    section = text.split("## Layout\n", 1)[1].split("\n## ", 1)[0]
+    text = (Path(__file__).resolve().parents[1] / path).read_text(encoding="utf-8")
+    section = text.split(f"{heading}\n", 1)[1].split("\n## ", 1)[0]
     rows = [line for line in section.splitlines() if line.startswith("| `")]
     return [(re.findall(r"`([^`]+)`", r)[0], re.findall(r"`([^`]+)`", r)) for r in rows]
 
 
-def test_readme_layout_names_every_module_script_and_doc_and_nothing_else():
+def test_docs_layout_names_every_module_script_and_doc_and_nothing_else():
     # before: the table missed 20 modules (policy.py, episode.py, io.py, grid/single_env.py, ...)
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
     listed: set[str] = set()
-    for first, names in _layout_rows():
+    for first, names in _layout_rows("docs/layout.md", "# Layout: every file"):
         base = first if first.endswith("/") else str(Path(first).parent) + "/"
         for name in names:
             if name.endswith((".py", ".md", ".sh")) and " " not in name:
@@ -138,9 +138,26 @@ def test_readme_layout_names_every_module_script_and_doc_and_nothing_else():
     wanted = {p for p in package if not p.endswith("/__init__.py")}
     wanted |= {f"scripts/{p.name}" for p in (root / "scripts").iterdir() if p.is_file()}
     wanted |= {f"docs/{p.name}" for p in (root / "docs").glob("*.md")}
-    assert sorted(wanted - listed) == [], "missing from the README's Layout table"
+    wanted |= {f"docs/api/{p.name}" for p in (root / "docs" / "api").glob("*.md")}
+    assert sorted(wanted - listed) == [], "missing from docs/layout.md"
     stale = sorted(p for p in listed if not (root / p).is_file())
-    assert stale == [], "named in the README's Layout table but not in the tree"
+    assert stale == [], "named in docs/layout.md but not in the tree"
+
+
+def test_readme_layout_names_every_package_and_top_folder_once():
+    """README's Layout is the short map: one row per package of cpp_mujoco and per top folder."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    firsts = [first for first, _ in _layout_rows("README.md", "## Layout")]
+    packages = sorted(
+        f"cpp_mujoco/{p.name}/"
+        for p in (root / "cpp_mujoco").iterdir()
+        if (p / "__init__.py").is_file()
+    )
+    wanted = [*packages, "assets/", "maps/", "scripts/", "docs/", "results/", "tests/"]
+    assert [w for w in wanted if firsts.count(w) != 1] == [], "not one README Layout row each"
+    assert all((root / first).exists() for first in firsts), "README's Layout names a missing path"
 
 
 def test_architecture_page_cites_only_files_that_exist():

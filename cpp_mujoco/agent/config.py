@@ -40,7 +40,7 @@ class TrainConfig:
     wind_gust_scale: float = 1.0
     # the MDP's crash reward while training (paper: −150). With γ = 0.95 a crash 11 moves ahead
     # weighs −85 against +1.2 for a move that shows three new cells, so the greedy policy takes a
-    # ≈ 1 % crash risk for it; a larger penalty buys landings with coverage (docs/agent.md).
+    # ≈ 1 % crash risk for it; a larger penalty buys landings with coverage (CHANGELOG.md).
     # Evaluation reports landing and coverage, which do not depend on it
     crash_reward: float = -150.0
     # start from this agent's weights (bundled name or file; "" = random init). A wind network
@@ -94,7 +94,7 @@ class TrainConfig:
     # the margin the wind planners keep as guide or demonstrator (safe-greedy-wind,
     # beam-search-wind): standard deviations of the way home's spread at gusty wind
     # (ReturnMargin.gusty_sigmas). The agent learns the margin its teachers keep: 6 took B's
-    # rated-wind landings from 98.7–98.8 % to 99.6–99.8 % for ~7 points of coverage (docs/agent.md)
+    # rated-wind landings from 98.7–98.8 % to 99.6–99.8 % for ~7 points of coverage (CHANGELOG.md)
     wind_planner_sigmas: float = ReturnMargin.gusty_sigmas  # 4, the planners' own
     # act only among the actions after which the way home is still paid (the safe greedy
     # planner's return rule, MapGraph.safe_actions): the soft-max, the greedy policy and the

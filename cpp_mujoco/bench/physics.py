@@ -78,7 +78,7 @@ def benchmark_batched(
     The batched env steps airborne drones on a model
     without contacts (:mod:`~cpp_mujoco.physics.airborne`): ``batched_full_model_*`` flies it
     with every step on the full model, and ``*_physics_ratio_vs_air`` divides by raw
-    ``mj_step`` of that contact-free model instead (the ratios the issue's 0.8 cannot flatter)."""
+    ``mj_step`` of that contact-free model instead (the ratios the 0.8 target cannot flatter)."""
     import gymnasium as gym
 
     rng = np.random.default_rng(seed)
