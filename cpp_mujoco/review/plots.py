@@ -151,8 +151,10 @@ def map_legend(fig: Figure, path: bool = True, ncol: int = 5) -> None:
                 [], [], ls="", marker="s", ms=9, mfc="none", mec=END_COLOR, mew=2.5, label="end"
             ),  # fmt: skip
         ]
-    fig.legend(handles=handles, loc="lower center", ncol=ncol, fontsize=8, frameon=False,
-               bbox_to_anchor=(0.5, 0.0 if path else -0.08))  # fmt: skip
+    place = {"loc": "lower center", "bbox_to_anchor": (0.5, 0.0 if path else -0.08)}
+    if fig.get_layout_engine() is not None:  # constrained: the layout makes room below
+        place = {"loc": "outside lower center"}
+    fig.legend(handles=handles, ncol=ncol, fontsize=8, frameon=False, **place)
 
 
 def trajectories_figure(
