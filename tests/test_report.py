@@ -106,8 +106,12 @@ def test_every_link_is_relative_and_points_to_a_file_in_the_folder(folder):
     page = _parse(html)
     links = [a.get("href") or a.get("src") for _, a in page.elements if "href" in a or "src" in a]
     assert len(links) >= 8
+    ids = {a["id"] for _, a in page.elements if "id" in a}
     for link in links:
         assert "://" not in link and not link.startswith(("/", "//")), link
+        if link.startswith("#"):
+            assert link[1:] in ids, link  # a section of this page
+            continue
         assert (folder / link).is_file(), link
     assert "http://" not in html and "https://" not in html  # nothing from the network
     assert '<meta name="viewport"' in html and "max-width:100%" in html
@@ -146,6 +150,7 @@ def _browser() -> str | None:
 
 _CHECK = """<script>
 (function () {
+  function top(e) { return e ? e.getBoundingClientRect().top + window.scrollY : null; }
   function report() {
     var status = document.createElement("pre");
     status.id = "check-status";
@@ -156,7 +161,11 @@ _CHECK = """<script>
         return {src: v.getAttribute("src"), ready: v.readyState,
                 error: v.error ? v.error.code : null,
                 h264: v.canPlayType('video/mp4; codecs="avc1.42E01E"')}; }),
-      scrollWidth: document.documentElement.scrollWidth, innerWidth: window.innerWidth
+      scrollWidth: document.documentElement.scrollWidth, innerWidth: window.innerWidth,
+      firstVideoTop: top(document.querySelector("video")),
+      firstImageTop: top(document.querySelector("img")),
+      headlineTop: top(document.getElementById("headline")),
+      tablesTop: top(document.getElementById("tables"))
     });
     document.body.appendChild(status);
   }
@@ -204,9 +213,101 @@ def test_chromium_renders_the_page_with_its_figures_videos_and_tables(folder, tm
         assert video["h264"] == "" and video["error"] == 4, video
         assert b"moov" in (folder / video["src"]).read_bytes()
         warnings.warn(f"{browser} cannot play H.264: checked {video['src']}'s index", stacklevel=1)
-    assert len(status["videos"]) == 1
+    # the first mission's chase video twice: in the summary and beside its mission
+    assert [v["src"] for v in status["videos"]] == ["mission_small_chase.mp4"] * 2
+    # as laid out: the headline table, then the first video, above the tables and thumbnails
+    assert status["headlineTop"] < status["firstVideoTop"] < status["tablesTop"], status
+    assert status["firstVideoTop"] < status["firstImageTop"], status
     print(f"{browser}: videos {status['videos']}")  # pytest -s shows whether H.264 played
     # the tables as rendered: their headers and a known cell
     headers = [t for t in dom.text if t.strip()]
     assert "grid landing" in headers and "mujoco coverage" in headers and "87.06%" in headers
     assert status["scrollWidth"] <= status["innerWidth"], status  # nothing wider than a phone
+
+
+def _position(html: str, marker: str) -> int:
+    assert marker in html, marker
+    return html.index(marker)
+
+
+def test_the_summary_opens_the_page_before_the_details(folder):
+    html = (folder / REPORT_NAME).read_text()
+    summary = _position(html, '<h2 id="summary">')
+    headline = _position(html, '<table id="headline">')
+    glossary = _position(html, '<div id="glossary">')
+    tables = _position(html, '<h2 id="tables">')
+    assert summary < headline < glossary < tables
+    assert html.index("<table") == headline  # no detail table before the headline
+    # the headline: one row per result file, with its landing and coverage
+    page = _parse(html[headline : html.index("</table>", headline)])
+    cells = [t for t in page.text if t.strip()]
+    assert cells[:6] == ["map", "policy", "backend", "episodes", "landing", "coverage"]
+    assert ["small", "safe-greedy", "grid", "8"] == cells[6:10]  # 4 starts × 2 budgets
+
+
+def test_the_first_video_is_above_the_thumbnails(folder):
+    html = (folder / REPORT_NAME).read_text()
+    video = _position(html, "<video")
+    assert video < _position(html, '<h2 id="tables">') < _position(html, "<img")
+    assert html[video:].startswith('<video controls muted playsinline preload="metadata" '
+                                   'src="mission_small_chase.mp4"')  # fmt: skip
+    assert _position(html, '<h2 id="videos">') < _position(html, '<h2 id="figures">')
+
+
+def test_the_glossary_names_every_column_the_page_shows(folder):
+    from cpp_mujoco.review import results
+    from cpp_mujoco.review.report_summary import glossary_term
+
+    html = (folder / REPORT_NAME).read_text()
+    headers = {
+        unescape(h) for h in re.findall(r"<th>(.*?)</th>", html)
+    }  # the headline's, the transfer table's and the result files'
+    glossary = html[_position(html, '<div id="glossary">') : _position(html, '<h2 id="tables">')]
+    terms = {unescape(t) for t in re.findall(r"<dt>(.*?)</dt>", glossary)}
+    assert {"landing", "coverage", "nfz viol.", "J/action", "mujoco landing"} <= headers
+    assert headers <= terms, headers - terms
+    opened = glossary.split("<details>")[0]  # the headline's columns unfolded
+    assert "<dt>landing</dt>" in opened and "<dt>coverage</dt>" in opened
+    assert "<dt>nfz viol.</dt>" not in opened and "<dt>nfz viol.</dt>" in glossary
+    # and every column a results table of the project can have
+    columns = [c for name in dir(results) if name.endswith("_COLUMNS")
+               for c in getattr(results, name)]  # fmt: skip
+    assert [c for c in columns if glossary_term(c) is None] == []
+    assert glossary_term("6 m/s") and glossary_term("hover (moderate)")
+
+
+def test_evaluate_writes_its_page(tmp_path, capsys, monkeypatch):
+    from cpp_mujoco.cli.main import main
+
+    argv = ["evaluate", "--map", "C", "--planner", "safe-greedy", "--budget-step", "25"]
+    argv += ["--out", str(tmp_path)]
+    monkeypatch.setattr("sys.argv", ["/venv/bin/cpp-mujoco", *argv])  # as the console script
+    assert main(argv) == 0
+    assert f"the page: {tmp_path / REPORT_NAME}" in capsys.readouterr().out
+    html = (tmp_path / REPORT_NAME).read_text()
+    text = " ".join(_parse(html).text)
+    assert "evaluate --map C --planner safe-greedy --budget-step 25" in text
+    assert _position(html, '<table id="headline">') < _position(html, '<h2 id="figures">')
+    assert "grid_C_safe-greedy_trajectories.png" in html and "landing ratio" in text
+    assert "<video" not in html  # no mission, no video
+
+
+def test_the_headline_puts_each_backend_side_by_side_with_the_optimum(folder, tmp_path):
+    data = json.loads((folder / "grid_small_safe-greedy.json").read_text())
+    optimum = {"coverage_ratio": 0.9, "bound_ratio": 0.9, "gap_to_optimal": 0.05,
+               "statuses": {"optimal": 8}, "episodes_known": 8}  # fmt: skip
+    (tmp_path / "grid_small_x.json").write_text(json.dumps({**data, "optimum": optimum}))
+    mujoco = {**data, "backend": "mujoco", "landing_ratio": 0.5}
+    (tmp_path / "mujoco_small_x.json").write_text(json.dumps(mujoco))
+    write_report(tmp_path, COMMAND)
+    html = (tmp_path / REPORT_NAME).read_text()
+    headline = html[_position(html, '<table id="headline">') :]
+    rows = [_parse(r).text for r in re.findall(r"<tr>(.*?)</tr>", headline.split("</table>")[0])]
+    assert rows == [
+        ["map", "policy", "grid episodes", "grid landing", "grid coverage", "grid optimal",
+         "grid gap to optimal", "mujoco episodes", "mujoco landing", "mujoco coverage"],
+        ["small", "safe-greedy", "8", "100.00%", f"{data['coverage_ratio']:.2%}", "90.00%",
+         "5.00 pt", "8", "50.00%", f"{data['coverage_ratio']:.2%}"],
+    ]  # fmt: skip
+    terms = re.findall(r"<dt>(.*?)</dt>", html)
+    assert set(rows[0]) <= set(terms)

@@ -60,7 +60,8 @@ def cmd_evaluate(args) -> None:
     if args.map_set or args.first:
         if not args.map_set:
             raise ValueError("--first needs --map-set")
-        return cmd_evaluate_map_set(args, DEFAULT_PLANNERS, weather, runtime)
+        cmd_evaluate_map_set(args, DEFAULT_PLANNERS, weather, runtime)
+        return _write_page(args.out)
     grid_maps = [load_map(spec, args.cell_pixels) for spec in args.map or bundled_maps()]
     for spec in args.agent:
         check_agent_file(spec)
@@ -86,6 +87,15 @@ def cmd_evaluate(args) -> None:
     with runtime:
         run_evaluation(grid_maps, policies, out, args.backend, **extra)
     print(f"\nresults and figures: {out}/")
+    _write_page(out)
+
+
+def _write_page(out) -> None:
+    """``index.html`` in the output folder: its results, tables and figures on one page, headed
+    by the command that wrote them."""
+    from cpp_mujoco.review.report import invocation, write_report
+
+    print(f"the page: {write_report(out, invocation())}")
 
 
 def add_evaluate(sub) -> None:

@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.review.plots import COVERAGE_LABEL, draw_trajectory, save_figure
+from cpp_mujoco.review.plots import COVERAGE_LABEL, draw_trajectory, map_legend, save_figure
 from cpp_mujoco.util.tables import backend_name
 
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -224,8 +224,9 @@ def trajectories_plot(
     grid_maps: Mapping[str, GridMap] | None = None,
 ) -> Figure:
     """One row per map (``maps``, else the set's first ``count``), one column per policy: the
-    map with the cells the row's example episode visited (seen cells lightened, start yellow,
-    end outlined) — what each policy did on a map it may never have seen."""
+    map with the cells the row's example episode visited (seen cells lightened, start magenta,
+    end cyan, a legend naming every colour) — what each policy did on a map it may never have
+    seen."""
     names, known = policies(data), map_names(data)
     chosen = list(maps) or known[:count]
     if unknown := [m for m in chosen if m not in known]:
@@ -261,6 +262,7 @@ def trajectories_plot(
         f"landing cell, budget {data['rows'][0]['example']['budget']}",
         fontsize=9,
     )
+    map_legend(fig, ncol=5)
     return fig
 
 

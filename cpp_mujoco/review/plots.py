@@ -13,10 +13,11 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.patches import Rectangle
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch, Rectangle
 
 from cpp_mujoco.grid.coverage import square_fov_union
-from cpp_mujoco.grid.image import zone_colors
+from cpp_mujoco.grid.image import COLORS, zone_colors
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.protocol.evaluate import EvaluationResult
 from cpp_mujoco.util.io import atomic_path
@@ -25,6 +26,8 @@ from cpp_mujoco.util.tables import backend_name
 BUDGET_LABEL = "movement budget (actions; in MuJoCo: calm-move energy units)"
 COVERAGE_LABEL = "coverage ratio (share of target cells)"
 LANDING_LABEL = "landing ratio (share of episodes)"
+# the path and its ends in colours no map layer uses (red, green, blue, yellow, light grey)
+PATH_COLOR, START_COLOR, END_COLOR = "black", "magenta", "cyan"
 
 
 def series_label(result: EvaluationResult) -> str:
@@ -86,6 +89,12 @@ def draw_map(ax, grid_map: GridMap, seen: np.ndarray | None = None) -> None:
 
 
 def map_figure(map_name: str | GridMap, path: str | os.PathLike) -> Path:
+    """:func:`map_plot` saved to ``path``."""
+    return save_figure(map_plot(map_name), path)
+
+
+def map_plot(map_name: str | GridMap) -> Figure:
+    """The map in the paper's colours, its cell counts and a legend of its colours."""
     grid_map = load_map(map_name)
     fig = Figure(figsize=(4, 4))
     ax = fig.subplots()
@@ -96,24 +105,56 @@ def map_figure(map_name: str | GridMap, path: str | os.PathLike) -> Path:
         f"{counts['nfz']} no-fly",
         fontsize=9,
     )
-    return save_figure(fig, path)
+    map_legend(fig, path=False, ncol=3)
+    return fig
 
 
 def draw_trajectory(ax, grid_map: GridMap, cells: np.ndarray, fov_side: int = 3) -> None:
-    """One episode: seen cells lightened, arrows along the path, start yellow, end white."""
+    """One episode: seen cells lightened, arrows along the path, the start a magenta dot, the
+    end a cyan square (:func:`map_legend` names them)."""
     cells = cells[cells >= 0]
     seen = square_fov_union(grid_map.shape, fov_side, cells[1:])
     draw_map(ax, grid_map, seen)
     rows, cols = np.divmod(cells, grid_map.shape[1])
+    arrow = {"arrowstyle": "->", "color": PATH_COLOR, "lw": 1.2}
     for (r0, c0), (r1, c1) in zip(
         zip(rows[:-1], cols[:-1], strict=True), zip(rows[1:], cols[1:], strict=True), strict=True
     ):
         if (r0, c0) != (r1, c1):
-            ax.annotate(
-                "", (c1, r1), (c0, r0), arrowprops={"arrowstyle": "->", "color": "red", "lw": 1.2}
-            )
-    ax.add_patch(Rectangle((cols[0] - 0.5, rows[0] - 0.5), 1, 1, color="yellow", alpha=0.9))
-    ax.add_patch(Rectangle((cols[-1] - 0.5, rows[-1] - 0.5), 1, 1, fill=False, ec="white", lw=2))
+            ax.annotate("", (c1, r1), (c0, r0), arrowprops=arrow)
+    ax.add_patch(Rectangle((cols[-1] - 0.4, rows[-1] - 0.4), 0.8, 0.8, fill=False,
+                           ec=END_COLOR, lw=2.5, zorder=4))  # fmt: skip
+    ax.plot(cols[0], rows[0], "o", ms=9, mfc=START_COLOR, mec="white", mew=1.5, zorder=5)
+
+
+def map_legend(fig: Figure, path: bool = True, ncol: int = 5) -> None:
+    """A legend below the figure naming every colour drawn: the zones and, with ``path``, the
+    seen cells, the path, its start and its end."""
+
+    def zone(name: str, label: str) -> Patch:
+        return Patch(fc=np.array(COLORS[name]) / 255, ec="0.5", label=label)
+
+    handles = [
+        zone("empty", "empty"),
+        zone("target", "target"),
+        zone("nfz", "no-fly"),
+        zone("yellow", "target in no-fly"),
+        zone("landing", "landing"),
+    ]
+    if path:
+        seen = 0.45 * np.array(COLORS["target"]) / 255 + 0.55
+        handles += [
+            Patch(fc=seen, ec="0.5", label="seen (lightened)"),
+            Line2D([], [], color=PATH_COLOR, marker=">", lw=1.2, label="path"),
+            Line2D([], [], ls="", marker="o", ms=9, mfc=START_COLOR, mec="0.5", label="start"),
+            Line2D(
+                [], [], ls="", marker="s", ms=9, mfc="none", mec=END_COLOR, mew=2.5, label="end"
+            ),  # fmt: skip
+        ]
+    place = {"loc": "lower center", "bbox_to_anchor": (0.5, 0.0 if path else -0.08)}
+    if fig.get_layout_engine() is not None:  # constrained: the layout makes room below
+        place = {"loc": "outside lower center"}
+    fig.legend(handles=handles, ncol=ncol, fontsize=8, frameon=False, **place)
 
 
 def trajectories_figure(
@@ -122,6 +163,15 @@ def trajectories_figure(
     budgets: Sequence[int] | None = None,
     start: tuple[int, int] | None = None,
 ) -> Path:
+    """:func:`trajectories_plot` saved to ``path``."""
+    return save_figure(trajectories_plot(result, budgets, start), path)
+
+
+def trajectories_plot(
+    result: EvaluationResult,
+    budgets: Sequence[int] | None = None,
+    start: tuple[int, int] | None = None,
+) -> Figure:
     """The paper's Fig. 2: one start, three budgets (default: low, middle, high)."""
     grid_map = result_map(result)
     available = np.unique(result.budgets)
@@ -144,7 +194,8 @@ def trajectories_figure(
             fontsize=9,
         )
     fig.suptitle(f"start {start}; {conditions_text([result])}", fontsize=9)
-    return save_figure(fig, path)
+    map_legend(fig, ncol=9 if len(budgets) > 1 else 5)
+    return fig
 
 
 def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike) -> Path:
@@ -154,21 +205,32 @@ def coverage_figure(results: Sequence[EvaluationResult], path: str | os.PathLike
 
 def coverage_plot(results: Sequence[EvaluationResult]) -> Figure:
     """Mean coverage ratio per budget, one line per policy and backend, with the bound; the
-    title names the map, the weather of each backend and the budgets."""
+    title names the map, the weather of each backend and the budgets. A policy keeps one colour;
+    the grid is drawn dashed with dots on top of MuJoCo's wide line with hollow squares, so
+    where the two coincide both stay visible."""
     fig = Figure(figsize=(6, 4))
     ax = fig.subplots()
+    colors = {}
     for result in results:
         table = result.per_budget
+        color = colors.setdefault(result.policy_name, f"C{len(colors) % 10}")
+        style = (
+            {"ls": "--", "marker": "o", "ms": 4, "lw": 1.4, "zorder": 4}
+            if result.backend == "grid"
+            else {"ls": "-", "marker": "s", "ms": 8, "mfc": "none", "lw": 3, "alpha": 0.6}
+        )
         ax.plot(
             [r["budget"] for r in table],
             [r["coverage_ratio"] for r in table],
+            color=color,
             label=f"{series_label(result)} (land {result.landing_ratio:.1%})",
+            **style,
         )
     table = results[0].per_budget
     ax.plot(
         [r["budget"] for r in table],
         [r["upper_bound"] for r in table],
-        "k--",
+        "k-.",
         lw=1,
         label="upper bound",
     )

@@ -7,6 +7,10 @@ JSON, which carry them). The page is built only from what is in the folder, link
 relative links and loads nothing from the network (inline CSS, no script), so the folder can be
 copied, zipped or served as it is. It is written atomically, like every other result file.
 
+The page opens with a summary for a reader new to the project (:mod:`.report_summary`: the
+headline table, the first mission's video, what each column means), then the details
+(:mod:`.report_sections`: every table, the missions' videos and recordings, the figures).
+
     write_report("out/demo", command="cpp-mujoco demo")   # → out/demo/index.html
 """
 
@@ -14,18 +18,22 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import shlex
 import sys
 import time
 from dataclasses import dataclass, field
 from html import escape
 from pathlib import Path
-from urllib.parse import quote
 
-from cpp_mujoco.review.report_conditions import conditions_summary, merge
+from cpp_mujoco.review.report_sections import (
+    figures_html,
+    link,
+    missions_html,
+    results_html,
+    tables_html,
+)
+from cpp_mujoco.review.report_summary import summary_html
 from cpp_mujoco.util.io import atomic_write_text
-from cpp_mujoco.util.tables import backend_name
 
 REPORT_NAME = "index.html"
 _CSS = """
@@ -42,6 +50,8 @@ th{background:#f0f0f0}td{white-space:nowrap}td.cond{white-space:normal;min-width
 .grid{display:grid;grid-template-columns:repeat(auto-fit,minmax(min(100%,22rem),1fr));gap:1rem}
 figure{margin:0}figcaption,.about{font-size:.85rem;color:#444}
 .cmd{font-family:ui-monospace,monospace}
+dl{font-size:.9rem;margin:.25rem 0}dl>div{break-inside:avoid;padding:.15rem 0}dt{font-weight:600}
+dd{margin:0 0 0 1.25rem;color:#333}@media(min-width:48rem){dl{columns:2;column-gap:2rem}}
 """
 
 
@@ -130,222 +140,6 @@ def scan(folder: Path) -> Folder:
     return found
 
 
-# ------------------------------------------------------------------------------------ the page
-def _link(name: str, text: str | None = None) -> str:
-    return f'<a href="{escape(quote(name))}">{escape(text or name)}</a>'
-
-
-def _about(entries: list[dict]) -> str:
-    """Map, policy, backend and conditions of the results a figure or video shows."""
-    if not entries:
-        return ""
-
-    def values(key: str, show=str) -> str:
-        return ", ".join(dict.fromkeys(show(e[key]) for e in entries if e.get(key) is not None))
-
-    conditions = dict.fromkeys(
-        conditions_summary(e.get("conditions") or {}, with_backend=False) for e in entries
-    )
-    parts = [
-        f"map {values('map')}",
-        f"policy {values('policy')}",
-        f"backend {values('backend', backend_name)}",
-        "; ".join(c for c in conditions if c) or "conditions not recorded",
-    ]
-    return escape(" · ".join(parts))
-
-
-def _table_entries(table: dict) -> list[dict]:
-    """Each row with its full conditions (the table's shared ones under its own)."""
-    shared = table.get("conditions") or {}
-    return [
-        {**row, "conditions": merge(shared, row.get("conditions") or {})} for row in table["rows"]
-    ]
-
-
-def _tables_html(found: Folder) -> str:
-    out = []
-    for file, tables in found.tables.items():
-        for name, table in tables.items():
-            columns = list(table["columns"])
-            rows = table["rows"]
-            extra = [c for c in ("map", "policy") if c not in columns and any(c in r for r in rows)]
-            if "backend" not in columns and any("backend" in r for r in rows):
-                extra.append("backend")
-            shared = table.get("conditions") or {}
-            own = any(r.get("conditions") for r in rows)
-            head = [*extra, *columns] + (["conditions (this row)"] if own else [])
-            body = []
-            for row in rows:
-                cells = [
-                    escape(backend_name(row.get(c, "")) if c == "backend" else str(row.get(c, "")))
-                    for c in [*extra, *columns]
-                ]
-                html_cells = "".join(f"<td>{c}</td>" for c in cells)
-                if own:
-                    full = merge(shared, row.get("conditions") or {})
-                    text = conditions_summary(full, leave_out=shared)
-                    html_cells += f'<td class="cond">{escape(text)}</td>'
-                body.append(f"<tr>{html_cells}</tr>")
-            out.append(
-                f'<h3 id="{escape(file)}-{escape(name)}">{escape(table.get("title", name))}</h3>'
-                f'<p class="about">{_link(file)} · table <code>{escape(name)}</code> · all rows: '
-                f"{escape(conditions_summary(shared) or 'conditions in the rows')}</p>"
-                '<div class="scroll"><table><thead><tr>'
-                + "".join(f"<th>{escape(h)}</th>" for h in head)
-                + "</tr></thead><tbody>"
-                + "".join(body)
-                + "</tbody></table></div>"
-                + (
-                    "<details><summary>all shared conditions (JSON)</summary><pre>"
-                    f"{escape(json.dumps(shared, indent=1))}</pre></details>"
-                    if shared
-                    else ""
-                )
-            )
-    for name in found.texts:
-        text = (found.path / name).read_text(errors="replace")
-        out.append(f"<h3>{_link(name)}</h3><pre>{escape(text)}</pre>")
-    return "".join(out)
-
-
-def _results_html(found: Folder) -> str:
-    if not found.results:
-        return ""
-    head = ["file", "map", "policy", "backend", "episodes", "landing", "coverage", "conditions"]
-    rows = []
-    for file, r in found.results.items():
-        cells = [
-            _link(file),
-            escape(str(r.get("map", ""))),
-            escape(str(r.get("policy", ""))),
-            escape(backend_name(r.get("backend", ""))),
-            escape(str(r.get("episodes", ""))),
-            f"{r['landing_ratio']:.2%}" if "landing_ratio" in r else "",
-            f"{r['coverage_ratio']:.2%}" if "coverage_ratio" in r else "",
-        ]
-        cond = escape(
-            conditions_summary({"backend": r.get("backend"), **(r.get("conditions") or {})})
-        )
-        rows.append("".join(f"<td>{c}</td>" for c in cells) + f'<td class="cond">{cond}</td>')
-    return (
-        '<h3>Every result file</h3><div class="scroll"><table><thead><tr>'
-        + "".join(f"<th>{h}</th>" for h in head)
-        + "</tr></thead><tbody>"
-        + "".join(f"<tr>{r}</tr>" for r in rows)
-        + "</tbody></table></div>"
-    )
-
-
-def _token_in(key: str, stem: str) -> bool:
-    return bool(key) and re.search(rf"(^|_){re.escape(key)}(_|$)", stem) is not None
-
-
-def _figure_entries(stem: str, found: Folder) -> list[dict]:
-    """The results a figure shows, first match wins: the result file its name extends
-    (``mujoco_A_x_trajectories`` ← ``mujoco_A_x.json``); the rows of the table its name starts
-    with, of the map and policy it names (``transfer_A_ddqn_A``: the transfer row of A and
-    ``ddqn[A]``); result files named inside its name or by its map (``grid_A_coverage``); the
-    table file of the same name (``wind_sweep``); the table rows of the map it names."""
-    from cpp_mujoco.review.results import file_part
-
-    def result(r: dict) -> dict:
-        return {**r, "conditions": {"backend": r.get("backend"), **(r.get("conditions") or {})}}
-
-    def rows(name: str | None = None) -> list[dict]:
-        return [
-            e
-            for tables in found.tables.values()
-            for key, t in tables.items()
-            if name is None or key == name
-            for e in _table_entries(t)
-            if "policy" in e
-        ]
-
-    def label(e: dict) -> str:
-        return f"{file_part(str(e.get('map', '')))}_{file_part(str(e.get('policy', '')))}"
-
-    exact = [r for f, r in found.results.items() if _token_in(Path(f).stem, stem)]
-    if exact:
-        return [result(r) for r in exact]
-    table = stem.split("_", 1)[0]
-    named = [e for e in rows(table) if _token_in(label(e), stem)]
-    if named:
-        return named
-    hits = []
-    for file, r in found.results.items():
-        key = Path(file).stem.removeprefix(f"{r.get('backend')}_")
-        by_map = f"{r.get('backend')}_{file_part(str(r.get('map', '')))}_coverage"
-        if _token_in(key, stem) or stem == by_map:
-            hits.append(result(r))
-    if hits:
-        return hits
-    for file, tables in found.tables.items():
-        if Path(file).stem == stem:
-            return [e for t in tables.values() for e in _table_entries(t) if "map" in e]
-    return [e for e in rows() if _token_in(file_part(str(e.get("map", ""))), stem)]
-
-
-def _figures_html(found: Folder) -> str:
-    items = []
-    for name in found.figures:
-        about = _about(_figure_entries(Path(name).stem, found))
-        items.append(
-            f'<figure><a href="{escape(quote(name))}"><img src="{escape(quote(name))}" '
-            f'alt="{escape(name)}"></a><figcaption>{_link(name)}'
-            f"{'<br>' + about if about else ''}</figcaption></figure>"
-        )
-    return f'<div class="grid">{"".join(items)}</div>' if items else ""
-
-
-def _recording_html(name: str, shown: str) -> str:
-    here = shlex.join(["rerun", name])
-    there = shlex.join(["rerun", f"{shown.rstrip('/')}/{name}"]) if shown else here
-    return (
-        f"<p>Recording {_link(name)} — open it with Rerun (<code>pip install rerun-sdk==0.41.0"
-        f'</code>):</p><pre class="cmd">{escape(there)}</pre>'
-        + (f'<p class="about">or, in this folder: <code>{escape(here)}</code></p>' if shown else "")
-    )
-
-
-def _missions_html(found: Folder, shown: str) -> str:
-    """Each mission's videos (playing in the page) and recording, with what flew it; files
-    that no mission JSON claims follow on their own."""
-    out, claimed = [], set()
-    for file, m in found.missions.items():
-        names = [Path(p).name for p in (m.get("files") or {}).values()]
-        names = [n for n in names if (found.path / n).is_file()]
-        claimed |= set(names)
-        about = {**m, "conditions": {"backend": m.get("backend"), **(m.get("conditions") or {})}}
-        outcome = "landed" if m.get("landed") else f"crashed ({m.get('crash_reason')})"
-        out.append(
-            f"<h3>map {escape(str(m.get('map')))}: {escape(str(m.get('policy')))} from "
-            f"{escape(str(tuple(m.get('start') or ())))}, budget {escape(str(m.get('budget')))}"
-            f'</h3><p class="about">{_about([about])} · {m.get("steps")} actions, '
-            f"{escape(outcome)}, coverage {m.get('coverage_ratio', 0):.0%} · {_link(file)}</p>"
-            + _media_html([n for n in names if n.endswith(".mp4")])
-            + "".join(_recording_html(n, shown) for n in names if n.endswith(".rrd"))
-        )
-    videos = [n for n in found.videos if n not in claimed]
-    recordings = [n for n in found.recordings if n not in claimed]
-    if videos or recordings:
-        out.append(
-            "<h3>Other videos and recordings</h3>"
-            + _media_html(videos)
-            + "".join(_recording_html(n, shown) for n in recordings)
-        )
-    return "".join(out)
-
-
-def _media_html(videos: list[str]) -> str:
-    items = [
-        f'<figure><video controls muted playsinline preload="metadata" '
-        f'src="{escape(quote(n))}"></video><figcaption>{_link(n)}</figcaption></figure>'
-        for n in videos
-    ]
-    return f'<div class="grid">{"".join(items)}</div>' if items else ""
-
-
 def build_report(folder: str | os.PathLike, command: str | None, title: str | None = None) -> str:
     """The page's HTML for ``folder`` as it is now."""
     from cpp_mujoco import __version__
@@ -354,13 +148,17 @@ def build_report(folder: str | os.PathLike, command: str | None, title: str | No
     found = scan(path)
     shown = str(folder)
     title = title or f"{path.resolve().name}: results"
-    sections = [
-        ("Tables", _tables_html(found) + _results_html(found)),
-        ("Figures", _figures_html(found)),
-        ("Missions: videos and recordings", _missions_html(found, shown)),
-        ("Other files", " · ".join(_link(n) for n in found.others)),
+    details = [
+        ("tables", "Tables", tables_html(found) + results_html(found)),
+        ("videos", "Missions: videos and recordings", missions_html(found, shown)),
+        ("figures", "Figures", figures_html(found)),
+        ("files", "Other files", " · ".join(link(n) for n in found.others)),
     ]
-    body = "".join(f"<h2>{escape(h)}</h2>{s}" for h, s in sections if s)
+    details = [d for d in details if d[2]]
+    summary = summary_html(found, [(a, h) for a, h, _ in details])
+    body = f'<h2 id="summary">Summary</h2>{summary}' + "".join(
+        f'<h2 id="{a}">{escape(h)}</h2>{s}' for a, h, s in details
+    )
     command_html = (
         f'<pre class="cmd">{escape(command)}</pre>'
         if command

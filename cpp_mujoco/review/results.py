@@ -101,11 +101,18 @@ def optimum_cells(result) -> dict[str, str]:
     some were not proven, the bound too, and where the cache misses episodes, how many it has."""
     if not result.optimum:
         return {"optimal": "-", "gap to optimal": "-"}
-    o = result.summary()["optimum"]
+    return optimum_summary_cells(result.summary()["optimum"], int(result.landed.size))
+
+
+def optimum_summary_cells(o: dict | None, episodes: int) -> dict[str, str]:
+    """:func:`optimum_cells` from a result's summary (``summary()["optimum"]``, as its JSON
+    keeps it) and its episode count."""
+    if not o:
+        return {"optimal": "-", "gap to optimal": "-"}
     best = _pct(o["coverage_ratio"])
     if o["statuses"].get("optimal", 0) < o["episodes_known"]:
         best += f" (bound {_pct(o['bound_ratio'])})"
-    if o["episodes_known"] < result.landed.size:
+    if o["episodes_known"] < episodes:
         best += f" [{o['episodes_known']} ep.]"
     return {"optimal": best, "gap to optimal": f"{o['gap_to_optimal'] * 100:.2f} pt"}
 
