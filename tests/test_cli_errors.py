@@ -190,6 +190,13 @@ def test_the_parsers_planner_names_are_the_planners():
     assert PLANNER_NAMES == tuple(PLANNERS)
 
 
+def test_the_parsers_solvers_are_the_exact_planners():
+    from cpp_mujoco.cli.options import SOLVERS as NAMED
+    from cpp_mujoco.planners.optimal_solver import SOLVERS
+
+    assert NAMED == SOLVERS
+
+
 def test_evaluate_in_mujoco_records_the_turbulence_it_flew(tmp_path, capsys, monkeypatch):
     import cpp_mujoco.protocol.evaluate as evaluate_module
 

@@ -1,23 +1,27 @@
-"""The ``optimum`` subcommand: solve the protocol's best missions into the cache."""
+"""The ``optimum`` command: solve the protocol's best missions into the cache; and the exact
+planner's options as ``evaluate`` passes them on. Its parser is in :mod:`cpp_mujoco.cli.parsers`.
+"""
 
 from __future__ import annotations
 
-from cpp_mujoco.cli.options import (
-    add_progress_option,
-    add_solver_options,
-    int_at_least,
-    optimal_options,
-    progress_wanted,
-)
+from cpp_mujoco.cli.options import progress_wanted
+from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.planners.optimal import solve_episodes
+from cpp_mujoco.planners.optimal_solver import SolverOptions
+from cpp_mujoco.protocol.evaluate import protocol_budgets, protocol_episodes
+from cpp_mujoco.protocol.optimum_cache import OptimumCache
+from cpp_mujoco.review.optimum_table import optimum_summary
+
+
+def optimal_options(args) -> dict:
+    """``make_planner("optimal", optimal=...)``'s keyword arguments from the command line."""
+    options = SolverOptions(
+        time_limit_s=args.time_limit, workers=args.solver_workers, solver=args.solver
+    )
+    return {"options": options, "cache_folder": args.optimum, "jobs": args.jobs}
 
 
 def cmd_optimum(args) -> None:
-    from cpp_mujoco.maps import bundled_maps, load_map
-    from cpp_mujoco.planners.optimal import solve_episodes
-    from cpp_mujoco.protocol.evaluate import protocol_budgets, protocol_episodes
-    from cpp_mujoco.protocol.optimum_cache import OptimumCache
-    from cpp_mujoco.review.optimum_table import optimum_summary
-
     grid_maps = [load_map(spec) for spec in args.map or bundled_maps()]
     budgets = protocol_budgets(step=args.budget_step)
     kwargs = optimal_options(args)
@@ -31,21 +35,3 @@ def cmd_optimum(args) -> None:
             progress=progress_wanted(args),
         )  # fmt: skip
         print(optimum_summary(grid_map, entries, cache.path))
-
-
-def add_optimum(sub) -> None:
-
-    p = sub.add_parser(
-        "optimum", help="solve the protocol's best missions (exact planner) into the cache"
-    )
-    p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
-    p.add_argument(
-        "--budget-step", type=int_at_least(1), default=1,
-        help="every n-th budget of 25..75, the largest always included (default: %(default)s)",
-    )  # fmt: skip
-    p.add_argument(
-        "--first", type=int_at_least(1), help="only the protocol's first N episodes of each map"
-    )
-    add_solver_options(p)
-    add_progress_option(p)
-    p.set_defaults(func=cmd_optimum)
