@@ -23,7 +23,9 @@ from html import escape
 from pathlib import Path
 from urllib.parse import quote
 
+from cpp_mujoco import __version__
 from cpp_mujoco.review.report_conditions import conditions_summary, merge
+from cpp_mujoco.review.results import file_part
 from cpp_mujoco.util.io import atomic_write_text
 from cpp_mujoco.util.tables import backend_name
 
@@ -247,7 +249,6 @@ def _figure_entries(stem: str, found: Folder) -> list[dict]:
     with, of the map and policy it names (``transfer_A_ddqn_A``: the transfer row of A and
     ``ddqn[A]``); result files named inside its name or by its map (``grid_A_coverage``); the
     table file of the same name (``wind_sweep``); the table rows of the map it names."""
-    from cpp_mujoco.review.results import file_part
 
     def result(r: dict) -> dict:
         return {**r, "conditions": {"backend": r.get("backend"), **(r.get("conditions") or {})}}
@@ -348,8 +349,6 @@ def _media_html(videos: list[str]) -> str:
 
 def build_report(folder: str | os.PathLike, command: str | None, title: str | None = None) -> str:
     """The page's HTML for ``folder`` as it is now."""
-    from cpp_mujoco import __version__
-
     path = Path(folder)
     found = scan(path)
     shown = str(folder)

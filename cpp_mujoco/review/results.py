@@ -22,7 +22,8 @@ from typing import Any
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.protocol.evaluate import split_conditions
+from cpp_mujoco.protocol.evaluate import PAPER_LANDING_RATIO, split_conditions
+from cpp_mujoco.review.report_conditions import weather_summary
 from cpp_mujoco.util.io import atomic_write_text, json_plain
 from cpp_mujoco.util.tables import format_table
 
@@ -59,8 +60,6 @@ def file_part(name: str) -> str:
 
 def paper_landing(grid_map: GridMap) -> float | None:
     """The paper's landing ratio, only beside the bundled map it was measured on."""
-    from cpp_mujoco.protocol.evaluate import PAPER_LANDING_RATIO
-
     return PAPER_LANDING_RATIO.get(grid_map.name) if grid_map.bundled else None
 
 
@@ -169,8 +168,6 @@ def wind_row(result) -> dict:
 def weather(result) -> str:
     """The weather a result was flown in, as one cell (``calm``, ``9 m/s N/E/S/W + moderate
     turbulence``): :func:`~cpp_mujoco.review.report_conditions.weather_summary`, the one rule."""
-    from cpp_mujoco.review.report_conditions import weather_summary
-
     return weather_summary(result.conditions) or "calm"
 
 

@@ -17,16 +17,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import mujoco
 import numpy as np
 
 from cpp_mujoco.physics.arena import SCENERY_NUMERIC
+from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
 
 if TYPE_CHECKING:
-    import mujoco
-
     from cpp_mujoco.maps import GridMap
-    from cpp_mujoco.physics.config import PhysicsConfig
 
 __all__ = [
     "KERB_RGBA", "NFZ_VOLUME_RGBA", "TILE_GAP", "ZONE_RGBA", "Scenery", "SceneryError",
@@ -115,8 +114,6 @@ class Scenery:
         if isinstance(config, GridGeometry):
             geometry = config
             if volume_height is None:
-                from cpp_mujoco.physics.config import PhysicsConfig
-
                 volume_height = 2 * PhysicsConfig().altitude
         else:
             geometry = GridGeometry.of(grid_map, config.cell_size)
@@ -148,8 +145,6 @@ class Scenery:
         return self
 
     def _build(self, landing, target, nfz, geometry: GridGeometry, volume_height: float) -> None:
-        import mujoco
-
         self.geometry = geometry
         self.volume_height = volume_height
         xy = geometry.centers()
@@ -206,8 +201,6 @@ class Scenery:
         no-fly volumes to ``scene``; call after ``update_scene`` and before rendering.
         :class:`SceneryError` if the scene has no room for them (``maxgeom``), rather than a map
         drawn in part."""
-        import mujoco
-
         colours = list(self._colours(seen))
         start = scene.ngeom
         if start + self.geom_count > scene.maxgeom:
