@@ -6,9 +6,6 @@ number has one format and one label wherever it is shown. Each row carries its m
 user's ``A.png`` is ``A-<digest>``, never map A) and digest, the policy, the backend, the raw
 numbers beside the shown cells, and the conditions of its results. A table's JSON states the
 conditions all its rows share once, and in each row only what differs (a wind speed, budgets).
-
-Imports stay light at module level: the CLI imports this only inside its commands anyway, and
-the scripts pay for what they use.
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@ plane ever collides. So the model keeps the ground, the camera, the light and th
 and a raised kerb around each landing area, so where the UAV may land reads from any view.
 
 The arena stores the map in the model (a ``<custom><numeric>`` field, which the physics never
-reads), so :meth:`Scenery.from_model` redraws it from a compiled model alone. Light on purpose: no
-GL, and MuJoCo only when a scene is decorated.
+reads), so :meth:`Scenery.from_model` redraws it from a compiled model alone. No GL here: the
+tiles go into a scene whatever renders it.
 """
 
 from __future__ import annotations
