@@ -191,11 +191,18 @@ def test_the_parsers_planner_names_are_the_planners():
     assert PLANNER_NAMES == tuple(PLANNERS)
 
 
+def test_the_parsers_solvers_are_the_exact_planners():
+    from cpp_mujoco.cli.options import SOLVERS as NAMED
+    from cpp_mujoco.planners.optimal_solver import SOLVERS
+
+    assert NAMED == SOLVERS
+
+
 def test_evaluate_in_mujoco_records_the_turbulence_it_flew(tmp_path, capsys, monkeypatch):
-    import cpp_mujoco.protocol.evaluate as evaluate_module
+    import cpp_mujoco.cli.evaluate as evaluate_command
 
     # before: no --turbulence option; a run in turbulence could not be asked for from the CLI
-    monkeypatch.setattr(evaluate_module, "protocol_budgets", lambda config=None, step=1: [4])
+    monkeypatch.setattr(evaluate_command, "protocol_budgets", lambda config=None, step=1: [4])
     path = tmp_path / "tiny.png"
     TINY.save(path)
     out = tmp_path / "out"
@@ -217,7 +224,7 @@ def test_an_unknown_turbulence_level_is_one_line_and_exit_2(command, capsys):
 
 
 def test_fly_passes_the_turbulence_to_the_env(monkeypatch, capsys):
-    import cpp_mujoco.missions.mission as mission
+    import cpp_mujoco.cli.fly as fly_command
 
     seen = {}
 
@@ -225,7 +232,7 @@ def test_fly_passes_the_turbulence_to_the_env(monkeypatch, capsys):
         seen.update(kwargs)
         raise ValueError("stopped before flying")
 
-    monkeypatch.setattr(mission, "fly_mission", fake_fly_mission)
+    monkeypatch.setattr(fly_command, "fly_mission", fake_fly_mission)
     argv = ["fly", "--map", "C", "--planner", "safe-greedy", "--turbulence", "severe"]
     assert main(argv) == 2 and "stopped before flying" in capsys.readouterr().err
     assert seen["turbulence"] == "severe" and seen["backend"] == "mujoco"

@@ -184,7 +184,7 @@ def test_a_set_the_physics_cannot_build_fails_before_flying(monkeypatch):
     def never(*args, **kwargs):
         raise AssertionError("flew an episode")
 
-    monkeypatch.setattr("cpp_mujoco.protocol.physics_tasks.make_env", no_arena)
+    monkeypatch.setattr("cpp_mujoco.protocol.map_sets.make_env", no_arena)
     monkeypatch.setattr("cpp_mujoco.protocol.map_sets.evaluate", never)
     maps = load_map_set(probe.name)
     planner = [("safe-greedy", make_planner("safe-greedy"))]

@@ -8,6 +8,9 @@ import time
 import torch
 
 from cpp_mujoco.agent.config import TrainConfig
+from cpp_mujoco.agent.ddqn import ddqn_update
+from cpp_mujoco.agent.network import QNetwork
+from cpp_mujoco.agent.train import Trainer
 
 
 def benchmark_training(
@@ -20,8 +23,6 @@ def benchmark_training(
     ``update_ms`` for one gradient update at the configured batch size, and ``setup_s`` for building
     the trainer (the planner's demonstrations are recorded there).
     """
-    from cpp_mujoco.agent.train import Trainer
-
     config = TrainConfig(
         map=map_name,
         device=device,
@@ -74,9 +75,6 @@ def benchmark_training(
 def update_ms(compile_network: bool, updates: int = 40, batch_size: int = 128) -> dict:
     """One DDQN update of the paper's network (16×16, half the batch demonstrations), eager or
     with ``torch.compile`` — the measurement behind training eagerly."""
-    from cpp_mujoco.agent.ddqn import ddqn_update
-    from cpp_mujoco.agent.network import QNetwork
-
     torch.manual_seed(0)
     online, target = QNetwork(16, 16), QNetwork(16, 16)
     run_online = torch.compile(online) if compile_network else online

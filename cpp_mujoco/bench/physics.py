@@ -10,13 +10,18 @@ from __future__ import annotations
 
 import time
 
+import gymnasium as gym
 import mujoco
 import numpy as np
+from mujoco.batch import Batch
 
+from cpp_mujoco.agent import load_agent
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.airborne import air_model
 from cpp_mujoco.physics.calibration import calibration
+from cpp_mujoco.physics.envs.mixed_wind import MixedWindVectorEnv
 from cpp_mujoco.physics.envs.single import MuJoCoEnv
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 
 
 def benchmark_physics(seconds: float = 5.0, map: str = "A", seed: int = 0) -> dict:  # noqa: A002
@@ -79,8 +84,6 @@ def benchmark_batched(
     without contacts (:mod:`~cpp_mujoco.physics.airborne`): ``batched_full_model_*`` flies it
     with every step on the full model, and ``*_physics_ratio_vs_air`` divides by raw
     ``mj_step`` of that contact-free model instead (the ratios the 0.8 target cannot flatter)."""
-    import gymnasium as gym
-
     rng = np.random.default_rng(seed)
     single = MuJoCoEnv(map=map)
     timestep = single.model.opt.timestep
@@ -174,8 +177,6 @@ def batch_stepping_rate(
     """``mj_step``/s of MuJoCo alone as the batched env steps it: ``drones`` hovering drones,
     5 steps per ``Batch.step`` call (a control tick's), no Python between calls but the loop;
     at cruise altitude, so on the contact-free model (``air``; False: the full model)."""
-    from mujoco.batch import Batch
-
     env = MuJoCoEnv(map=map)
     env.reset(seed=0, options={"budget": 75})
     env.data.ctrl[:] = env.data.act
@@ -198,9 +199,6 @@ def benchmark_protocol(map: str = "A", step: int = 1, ray_step: int = 1) -> dict
     runtime started before the clock starts). The Ray runs must agree episode by episode.
     ``stepping_floor_s``: the protocol's physics steps at :func:`batch_stepping_rate` on both
     cores — MuJoCo's own share of the wall time, which no Python around it can remove."""
-    from cpp_mujoco.agent import load_agent
-    from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
-
     policy = load_agent(map)
     start = time.perf_counter()
     local = evaluate(policy, map, backend="mujoco", budgets=protocol_budgets(step=step), workers=2)
@@ -215,7 +213,7 @@ def benchmark_protocol(map: str = "A", step: int = 1, ray_step: int = 1) -> dict
         f"protocol_{map}_stepping_share": floor / wall,
     }
     try:
-        import ray
+        import ray  # optional: the ray extra
     except ImportError:
         return out
     budgets = protocol_budgets(step=ray_step)
@@ -280,8 +278,6 @@ def benchmark_mixed(seconds: float = 15.0, num_envs: int = 64, map: str = "B") -
     moderate from N/E/S/W) with the four directions in one batch, against the same weathers
     kept in five batches (a condition key that changes nothing keeps them apart); interleaved,
     best of two rounds."""
-    from cpp_mujoco.physics.envs.mixed_wind import MixedWindVectorEnv
-
     calm, rest = num_envs // 5, num_envs - num_envs // 5
     shares = [rest // 4 + (k < rest % 4) for k in range(4)]
     wind = {"wind_speed": 9.0, "turbulence": "moderate"}

@@ -7,6 +7,14 @@ import tempfile
 import time
 from pathlib import Path
 
+import gymnasium as gym
+
+from cpp_mujoco.missions.mission import fly_mission
+from cpp_mujoco.physics.view.rendering import OffscreenCamera, configure_gl
+from cpp_mujoco.planners import SafeGreedyPlanner
+from cpp_mujoco.review.flight_review import hud_state
+from cpp_mujoco.review.hud import Hud
+
 
 def benchmark_review(map_name: str = "B", budget: int = 40, frames: int = 200) -> dict:
     """Onboard camera frames/s at 320×240, chase camera frames/s at 512×384 as a mission video
@@ -16,13 +24,9 @@ def benchmark_review(map_name: str = "B", budget: int = 40, frames: int = 200) -
     The mission is flown by the safe greedy planner in MuJoCo, writing the onboard video in both
     runs, so the difference is the recording alone (pose, footprint, compressed frames, metrics).
     """
-    import gymnasium as gym
-    import mujoco
+    import mujoco  # GL: MuJoCo and dm_control only after run() chose the backend
 
-    from cpp_mujoco.missions.mission import fly_mission
-    from cpp_mujoco.physics.view.rendering import OffscreenCamera
-    from cpp_mujoco.physics.view.scenery import Scenery
-    from cpp_mujoco.planners import SafeGreedyPlanner
+    from cpp_mujoco.physics.view.scenery import Scenery  # GL: as above
 
     env = gym.make("cpp_mujoco/MuJoCo-v0", map=map_name).unwrapped
     env.reset(seed=0)
@@ -64,11 +68,9 @@ def benchmark_review(map_name: str = "B", budget: int = 40, frames: int = 200) -
 
 def _chase_fps(env, scenery, frames: int) -> float:
     """Chase frames/s with everything a mission video draws, the trail at its longest."""
-    import mujoco
+    import mujoco  # GL: as in benchmark_review
 
-    from cpp_mujoco.physics.view.chase import chase_camera
-    from cpp_mujoco.review.flight_review import hud_state
-    from cpp_mujoco.review.hud import Hud
+    from cpp_mujoco.physics.view.chase import chase_camera  # GL: as in benchmark_review
 
     env.mdp.coverage[0, ::2] = True  # half the map seen: both tile colours in view
     camera = chase_camera(env.model, 512, 384, scenery=scenery, coverage=env.mdp.coverage)
@@ -94,7 +96,5 @@ def _chase_fps(env, scenery, frames: int) -> float:
 
 def run() -> dict:
     """The ``review`` section as ``cpp-mujoco benchmark`` runs it (the GL backend chosen first)."""
-    from cpp_mujoco.physics.view.rendering import configure_gl
-
     configure_gl()
     return benchmark_review()

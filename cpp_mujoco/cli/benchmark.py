@@ -1,22 +1,24 @@
 """``cpp-mujoco benchmark``: the speed figures the README quotes, measured on this machine.
 
 One pattern for every section: a module with ``run() -> dict`` (a flat dict of numbers),
-registered in :data:`SECTIONS` by module name and imported only when its section runs — so the
-command line knows the sections without importing torch or MuJoCo.
+registered in :data:`~cpp_mujoco.cli.parsers.SECTIONS` by module name and imported only when its
+section runs — so the command line knows the sections without importing torch or MuJoCo. The
+parser is in :mod:`cpp_mujoco.cli.parsers`.
 """
 
 from __future__ import annotations
 
 import importlib
+import json
 
-from cpp_mujoco.cli.options import add_progress_option, check_output_file, progress_wanted
+from tqdm import tqdm
 
-SECTIONS: dict[str, str] = {
-    "grid": "cpp_mujoco.bench.grid",
-    "physics": "cpp_mujoco.bench.physics",
-    "training": "cpp_mujoco.bench.agent",
-    "review": "cpp_mujoco.bench.review",
-}
+from cpp_mujoco.cli.options import check_output_file, progress_wanted
+from cpp_mujoco.cli.parsers import SECTIONS
+from cpp_mujoco.util.io import atomic_write_text
+from cpp_mujoco.util.tables import format_table
+
+__all__ = ["SECTIONS", "cmd_benchmark", "run_section", "run_sections"]
 
 
 def run_section(name: str) -> dict:
@@ -28,8 +30,6 @@ def run_section(name: str) -> dict:
 
 def run_sections(names: list[str], progress: bool = False) -> dict[str, dict]:
     """Section name → its report, in the order given (a tqdm bar with ``progress``)."""
-    from tqdm import tqdm
-
     report = {}
     with tqdm(names, desc="benchmark", unit="section", disable=not progress) as bar:
         for name in bar:
@@ -39,11 +39,6 @@ def run_sections(names: list[str], progress: bool = False) -> dict[str, dict]:
 
 
 def cmd_benchmark(args) -> None:
-    import json
-
-    from cpp_mujoco.util.io import atomic_write_text
-    from cpp_mujoco.util.tables import format_table
-
     unknown = set(args.only) - set(SECTIONS)
     if unknown:
         raise ValueError(
@@ -59,19 +54,3 @@ def cmd_benchmark(args) -> None:
     print(format_table(rows, ["section", "measure", "value"]))
     atomic_write_text(args.json, json.dumps(report, indent=2))
     print(f"\nwritten: {args.json}")
-
-
-def add_parser(sub) -> None:
-    """Register ``cpp-mujoco benchmark`` (the command line's pattern: the parser sets ``func``)."""
-
-    p = sub.add_parser("benchmark", help="measure env, planner, training and physics speed")
-    p.add_argument(
-        "--only", nargs="*", default=[],
-        help=f"sections to run: {' '.join(SECTIONS)} (default: all)",
-    )  # fmt: skip
-    p.add_argument(
-        "--json", default="out/benchmark.json",
-        help="where to write the JSON report (default: %(default)s)",
-    )  # fmt: skip
-    add_progress_option(p)
-    p.set_defaults(func=cmd_benchmark)

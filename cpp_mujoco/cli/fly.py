@@ -1,21 +1,36 @@
-"""The ``fly`` subcommand: one mission with its Rerun recording and videos."""
+"""The ``fly`` command: one mission with its Rerun recording and videos; its parser is in
+:mod:`cpp_mujoco.cli.parsers`."""
 
 from __future__ import annotations
 
 import sys
 
 from cpp_mujoco.cli.options import (
-    PLANNER_NAMES,
-    add_any_map_option,
-    add_cell_pixels_option,
-    add_progress_option,
-    add_wind_options,
+    check_agent_file,
     check_output_file,
-    int_at_least,
-    load_agent_for,
     progress_wanted,
     weather_options,
 )
+from cpp_mujoco.maps import load_map
+from cpp_mujoco.missions.mission import fly_mission
+from cpp_mujoco.physics.view.rendering import configure_gl
+from cpp_mujoco.planners import make_planner
+from cpp_mujoco.review.recording_tools import open_command
+
+
+def load_agent_for(spec: str, grid_map):
+    """``--agent SPEC`` for ``grid_map``: a per-map agent only on a map of its size."""
+    from cpp_mujoco.agent import load_agent  # heavy: torch, only when an agent flies
+
+    check_agent_file(spec)
+    agent = load_agent(spec)
+    shape = getattr(agent, "map_shape", grid_map.shape)
+    if shape is not None and tuple(shape) != grid_map.shape:  # None: a general agent, any size
+        raise ValueError(
+            f"agent {spec!r} was trained on {shape[0]}x{shape[1]} maps; map {grid_map.label!r} "
+            f"is {grid_map.shape[0]}x{grid_map.shape[1]}"
+        )
+    return agent
 
 
 def _parse_start(text: str | None) -> tuple[int, int] | None:
@@ -29,16 +44,12 @@ def _parse_start(text: str | None) -> tuple[int, int] | None:
 
 
 def cmd_fly(args) -> None:
-    from cpp_mujoco.maps import load_map
-
     weather = weather_options(args)  # checked before anything is loaded or written
     grid_map = load_map(args.map, args.cell_pixels)
     start = _parse_start(args.start)
     for option, suffix in (("rrd", ".rrd"), ("video", ".mp4"), ("onboard_video", ".mp4")):
         check_output_file("--" + option.replace("_", "-"), getattr(args, option), suffix)
     if args.planner:
-        from cpp_mujoco.planners import make_planner
-
         policy = make_planner(args.planner)
     elif args.agent:
         policy = load_agent_for(args.agent, grid_map)
@@ -51,11 +62,7 @@ def cmd_fly(args) -> None:
             "a planner (--planner NAME)"
         )
     if (args.video or args.onboard_video or args.rrd) and args.backend == "mujoco":
-        from cpp_mujoco.physics.view.rendering import configure_gl
-
         print(f"offscreen rendering with {configure_gl(args.gl)}", file=sys.stderr)
-    from cpp_mujoco.missions.mission import fly_mission
-
     extra = weather
     outcome = fly_mission(
         policy, grid_map, budget=args.budget, start=start, backend=args.backend, seed=args.seed,
@@ -73,39 +80,6 @@ def cmd_fly(args) -> None:
             f"flight {outcome.flight_time_s:.1f} s, energy {outcome.energy_used_j / 1000:.2f} kJ, "
             f"no-fly violations {outcome.nfz_violations}, wall time {outcome.wall_time_s:.1f} s"
         )
-    if "rrd" in outcome.files:
-        from cpp_mujoco.review.recording_tools import open_command
     for kind, path in outcome.files.items():
         hint = f"   (open with: {open_command(path)})" if kind == "rrd" else ""
         print(f"{kind}: {path}{hint}")
-
-
-def add_fly(sub) -> None:
-    p = sub.add_parser("fly", help="fly one mission; write a Rerun recording and videos")
-    p.add_argument("--map", default="A", help="bundled map name or PNG path (default: A)")
-    add_cell_pixels_option(p)
-    p.add_argument(
-        "--agent", help="bundled agent name or checkpoint file (default: a bundled map's agent)"
-    )
-    p.add_argument("--planner", choices=PLANNER_NAMES, help="fly a reference planner instead")
-    add_any_map_option(p)
-    p.add_argument(
-        "--budget", type=int_at_least(1), default=40, help="movement budget (default: 40)"
-    )
-    p.add_argument("--start", help="start cell ROW,COL (default: the first landing cell)")
-    p.add_argument(
-        "--backend", default="mujoco", choices=["mujoco", "grid"],
-        help="fly in MuJoCo or step the grid MDP (default: %(default)s)",
-    )  # fmt: skip
-    p.add_argument(
-        "--seed", type=int_at_least(0), default=0, help="seed of the wind gusts (default: 0)"
-    )
-    add_wind_options(p)
-    p.add_argument("--rrd", help="write a Rerun recording here (open with: rerun PATH)")
-    p.add_argument("--video", help="write the chase camera's MP4 here")
-    p.add_argument("--onboard-video", help="write the downward camera's MP4 here")
-    p.add_argument(
-        "--gl", choices=["egl", "osmesa"], help="offscreen GL (default: egl, else osmesa)"
-    )
-    add_progress_option(p)
-    p.set_defaults(func=cmd_fly)

@@ -4,28 +4,32 @@ Bad input is one line on stderr and exit status 2, before anything runs where it
 Ctrl-C and SIGTERM finalise the files being written (exit 130 / 143) and say which they were.
 
 Every subcommand is registered the same way: an ``add_*(subparsers)`` function adds its parser
-and sets ``func`` (which returns the exit status, None for 0) — one module per subcommand
-(:mod:`~cpp_mujoco.cli.maps`, :mod:`~cpp_mujoco.cli.evaluate`, :mod:`~cpp_mujoco.cli.fly`,
-:mod:`~cpp_mujoco.cli.demo`,
-:mod:`~cpp_mujoco.cli.optimum`), ``train`` in :mod:`cpp_mujoco.cli.train`,
-``train-general`` in :mod:`cpp_mujoco.cli.train_general`,
-``benchmark`` in :mod:`cpp_mujoco.cli.benchmark`. Heavy modules (torch, MuJoCo, matplotlib) are
-imported inside the commands, so ``--help`` and ``--version`` answer at once.
+and sets ``func``, the command (which returns the exit status, None for 0). The parsers are in
+:mod:`cpp_mujoco.cli.parsers`, ``train``'s in :mod:`cpp_mujoco.cli.train`, ``train-general``'s
+in :mod:`cpp_mujoco.cli.train_general`. A ``func`` given as ``"module:function"`` is imported by
+:func:`command` when it runs — the one place the command line imports lazily — so the commands'
+modules import what they use at their top, and ``--help`` and ``--version`` import none of them
+(nor torch, MuJoCo, matplotlib).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
+from collections.abc import Callable
 
 from cpp_mujoco import __version__
-from cpp_mujoco.cli.benchmark import add_parser as add_benchmark
-from cpp_mujoco.cli.demo import add_demo
-from cpp_mujoco.cli.evaluate import add_evaluate
-from cpp_mujoco.cli.fly import add_fly
-from cpp_mujoco.cli.maps import add_maps
-from cpp_mujoco.cli.optimum import add_optimum
 from cpp_mujoco.cli.options import TRAIN_GENERAL_HELP, TRAIN_HELP
+from cpp_mujoco.cli.parsers import (
+    add_benchmark,
+    add_demo,
+    add_evaluate,
+    add_fly,
+    add_maps,
+    add_optimum,
+)
+from cpp_mujoco.util.signals import exit_code, interruptible
 
 
 class _Parser(argparse.ArgumentParser):
@@ -43,8 +47,8 @@ def add_train(sub, options: bool = True) -> None:
     from the training configs, and that package imports torch (seconds), so without ``options``
     only their names and help lines are registered — enough for every other command line."""
     if options:
-        from cpp_mujoco.cli.train import add_parser
-        from cpp_mujoco.cli.train_general import add_parser as add_general_parser
+        from cpp_mujoco.cli.train import add_parser  # heavy: torch (the training configs)
+        from cpp_mujoco.cli.train_general import add_parser as add_general_parser  # heavy: torch
 
         add_parser(sub)
         add_general_parser(sub)
@@ -94,18 +98,26 @@ def _input_errors() -> tuple[type[BaseException], ...]:
     return (ValueError, OSError) + ((rendering.RenderingError,) if rendering else ())
 
 
-def main(argv: list[str] | None = None) -> int:
-    from cpp_mujoco.util.signals import exit_code, interruptible
+def command(func: str | Callable) -> Callable:
+    """A subcommand's ``func``: ``"module:function"`` is imported here, when the command runs
+    (the command line's one lazy import: a command's module imports torch, MuJoCo or matplotlib
+    at its top); a callable is the command itself."""
+    if callable(func):
+        return func
+    module, _, name = func.partition(":")
+    return getattr(importlib.import_module(module), name)
 
+
+def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     train_options = any(word in TRAIN_COMMANDS for word in argv)
     args = build_parser(train_options=train_options).parse_args(argv)
     own = not getattr(args, "own_signals", False)  # train saves a checkpoint on its own signals
     try:
         if not own:
-            return args.func(args) or 0
+            return command(args.func)(args) or 0
         with interruptible():
-            code = args.func(args)
+            code = command(args.func)(args)
     except _input_errors() as e:  # evaluated only when an exception arrives
         message = " ".join(str(e).split("\n")[0].split())
         print(f"cpp-mujoco {args.command}: error: {message}", file=sys.stderr)

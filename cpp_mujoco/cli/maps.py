@@ -1,63 +1,28 @@
-"""The ``maps`` subcommand (``maps draw``, ``maps generate``) and the map sets
-``evaluate --map-set`` flies; like every command, these import the numerical modules only when
-they run.
+"""The ``maps`` subcommand's commands (``maps draw``, ``maps generate``) and ``evaluate
+--map-set``'s, which flies a held-out map set; their parsers are in :mod:`cpp_mujoco.cli.parsers`.
 """
 
 from __future__ import annotations
 
 import os
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 
-from cpp_mujoco.cli.options import (
-    add_cell_pixels_option,
-    check_agent_file,
-    int_at_least,
-    optimal_options,
-    out_dir,
-    progress_wanted,
-    rules_for,
-)
-
-DEFAULT_SIZE = 16
-
-
-# ---------------------------------------------------------------------------------- options
-def add_generate_options(p) -> None:
-    p.add_argument("count", type=int_at_least(1), metavar="N", help="how many maps to write")
-    p.add_argument("--out", required=True, help="the folder for the PNG maps")
-    p.add_argument(
-        "--seed", type=int_at_least(0), default=0,
-        help="the first map's seed; the n-th map is seed + n (default: %(default)s). "
-        "Seeds 1000000..1999999 are the held-out test sets': never train on them",
-    )  # fmt: skip
-    p.add_argument(
-        "--size", type=int_at_least(8), default=DEFAULT_SIZE,
-        help="the maps' side, cells (default: %(default)s)",
-    )  # fmt: skip
-    p.add_argument(
-        "--door-wall", type=float, metavar="P",
-        help="the chance each map has a wall across it with one door of 1-2 cells, as on map C "
-        "(default: 0, the held-out v1 sets' generator)",
-    )  # fmt: skip
-    p.add_argument(
-        "--overwrite", action="store_true",
-        help="write into a non-empty --out (maps of the same name are replaced)",
-    )  # fmt: skip
-
-
-def add_map_set_options(p) -> None:
-    p.add_argument(
-        "--map-set", metavar="NAME",
-        help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1, doors16-v1: "
-        "every map with a wall and one door), flown on "
-        "--backend with its size class's budgets (16x16: 25..75, 32x32: 50..150); writes a JSON "
-        "and its figures (per-map coverage, example trajectories) into --out",
-    )  # fmt: skip
-    p.add_argument(
-        "--first", type=int_at_least(1), metavar="N",
-        help="with --map-set: only its first N maps, for a quick look (results say so)",
-    )  # fmt: skip
+from cpp_mujoco.cli.optimum import optimal_options
+from cpp_mujoco.cli.options import check_agent_file, out_dir, progress_wanted, rules_for
+from cpp_mujoco.grid.wind import GridWind
+from cpp_mujoco.map_sets.generator import GeneratorConfig, generate_from_seed
+from cpp_mujoco.map_sets.sets import HELDOUT_SEEDS, load_map_set, map_set_spec
+from cpp_mujoco.map_sets.size_classes import budget_range
+from cpp_mujoco.maps import MAX_SIDE, bundled_maps, load_map
+from cpp_mujoco.planners import make_planner
+from cpp_mujoco.protocol.map_sets import evaluate_map_set
+from cpp_mujoco.review.map_set_figures import load_map_set_result, write_map_set_figures
+from cpp_mujoco.review.plots import map_figure
+from cpp_mujoco.review.results import file_part
+from cpp_mujoco.util.io import is_path_like
+from cpp_mujoco.util.tables import format_table
 
 
 # -------------------------------------------------------------------------- maps generate
@@ -76,11 +41,6 @@ def _claim_folder(path: str, overwrite: bool) -> Path:
 
 def cmd_generate(args) -> None:
     """``maps generate N``: N maps from seed ``--seed`` on, one line per map."""
-    from cpp_mujoco.map_sets.generator import GeneratorConfig, generate_from_seed
-    from cpp_mujoco.map_sets.sets import HELDOUT_SEEDS
-    from cpp_mujoco.map_sets.size_classes import budget_range
-    from cpp_mujoco.maps import MAX_SIDE
-
     size, first = args.size, args.seed
     seeds = range(first, first + args.count)
     if size > MAX_SIDE:
@@ -123,9 +83,11 @@ def agent_entry(spec: str, agent, rules: list[str] | None) -> tuple[str, object]
 def _set_agent(spec: str, set_name: str, size: int):
     """A trained agent for a map set: never a per-map agent (the bundled ones, or one trained
     on a bundled map), which only flies the map it was trained on."""
-    from cpp_mujoco.agent import GENERAL_AGENTS, bundled_agents, load_agent
-    from cpp_mujoco.maps import bundled_maps
-    from cpp_mujoco.util.io import is_path_like
+    from cpp_mujoco.agent import (  # heavy: torch, only with --agent
+        GENERAL_AGENTS,
+        bundled_agents,
+        load_agent,
+    )
 
     check_agent_file(spec)
     per_map = f"agent {spec!r} is a per-map agent"
@@ -154,8 +116,6 @@ def grid_wind_option(args):
         return None
     if args.backend != "grid":
         raise ValueError("--grid-wind is the grid's wind option; in MuJoCo use --wind-speed")
-    from cpp_mujoco.grid.wind import GridWind
-
     return GridWind(min_speed=speed, max_speed=speed, calm_fraction=0.0)
 
 
@@ -165,13 +125,8 @@ def cmd_evaluate_map_set(
     """``evaluate --map-set NAME``: the protocol on every map of the set (on the grid or in
     MuJoCo), a per-map table, the means per policy, one JSON with all of it, and its figures
     beside it — as ``evaluate`` writes figures beside its JSON for single maps."""
-    from contextlib import nullcontext
-
     if args.map:
         raise ValueError("--map-set replaces --map; give one of them")
-    from cpp_mujoco.map_sets.sets import load_map_set, map_set_spec
-    from cpp_mujoco.planners import make_planner
-
     spec = map_set_spec(args.map_set)
     agents = [agent_entry(a, _set_agent(a, spec.name, spec.size), args.rule) for a in args.agent]
     maps = load_map_set(spec.name, first=args.first)
@@ -179,10 +134,6 @@ def cmd_evaluate_map_set(
 
     policies = [(n, make_planner(n, optimal=optimal_options(args))) for n in names] + agents
     out = out_dir(args.out)
-    from cpp_mujoco.protocol.map_sets import evaluate_map_set
-    from cpp_mujoco.review.map_set_figures import load_map_set_result, write_map_set_figures
-    from cpp_mujoco.review.results import file_part
-
     physics: dict = {}
     if args.backend == "mujoco":
         engine = "ray" if args.ray else "local"
@@ -213,11 +164,6 @@ def cmd_evaluate_map_set(
 
 def cmd_draw(args) -> None:
     """``maps draw``: each map as the paper's colour figure, and its cell counts."""
-    from cpp_mujoco.maps import bundled_maps, load_map
-    from cpp_mujoco.review.plots import map_figure
-    from cpp_mujoco.review.results import file_part
-    from cpp_mujoco.util.tables import format_table
-
     specs = getattr(args, "map", None) or bundled_maps()
     grid_maps = [load_map(s, getattr(args, "cell_pixels", None)) for s in specs]  # checked first
     out = out_dir(getattr(args, "out", None) or "out/maps")
@@ -233,23 +179,3 @@ def cmd_draw(args) -> None:
             }
         )
     print(format_table(rows, ["map", "size", "landing", "target", "nfz", "figure"]))
-
-
-def add_maps(sub) -> None:
-    p = sub.add_parser(
-        "maps", help="draw maps (maps draw, the default) or generate random ones (maps generate)"
-    )
-    p.set_defaults(func=cmd_draw)
-    kinds = p.add_subparsers(
-        dest="maps_command", metavar="{draw,generate}", help="draw (the default) or generate"
-    )
-    draw = kinds.add_parser("draw", help="draw maps as the paper's colour figure, list cell counts")
-    draw.add_argument(
-        "--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)"
-    )
-    add_cell_pixels_option(draw)
-    draw.add_argument("--out", help="folder for the figures (default: out/maps)")
-    draw.set_defaults(func=cmd_draw)
-    generate = kinds.add_parser("generate", help="write random maps in the paper's style as PNGs")
-    add_generate_options(generate)
-    generate.set_defaults(func=cmd_generate)

@@ -1,24 +1,34 @@
-"""The ``optimum`` subcommand: solve the protocol's best missions into the cache."""
+"""The ``optimum`` command: solve the protocol's best missions into the cache; and the exact
+planner's options as ``evaluate`` passes them on. Its parser is in :mod:`cpp_mujoco.cli.parsers`.
+"""
 
 from __future__ import annotations
 
-from cpp_mujoco.cli.options import (
-    add_progress_option,
-    add_solver_options,
-    int_at_least,
-    optimal_options,
-    progress_wanted,
-)
+from cpp_mujoco.cli.options import DEFAULT_CACHE, progress_wanted
+from cpp_mujoco.map_sets.size_classes import map_size, size_config
+from cpp_mujoco.maps import bundled_maps, load_map
+from cpp_mujoco.planners.optimal import solve_episodes
+from cpp_mujoco.planners.optimal_solver import SolverOptions
+from cpp_mujoco.protocol.evaluate import protocol_budgets, protocol_episodes
+from cpp_mujoco.protocol.optimum import default_folder
+from cpp_mujoco.protocol.optimum_cache import OptimumCache
+from cpp_mujoco.review.optimum_table import optimum_summary
+
+
+def optimal_options(args) -> dict:
+    """``make_planner("optimal", optimal=...)``'s keyword arguments from the command line."""
+    options = SolverOptions(
+        time_limit_s=args.time_limit, workers=args.solver_workers, solver=args.solver
+    )
+    return {"options": options, "cache_folder": optimum_folder(args), "jobs": args.jobs}
+
+
+def optimum_folder(args) -> str:
+    """``--optimum``, else the committed cache wherever the package runs from."""
+    return args.optimum or str(default_folder() or DEFAULT_CACHE)
 
 
 def cmd_optimum(args) -> None:
-    from cpp_mujoco.map_sets.size_classes import map_size, size_config
-    from cpp_mujoco.maps import bundled_maps, load_map
-    from cpp_mujoco.planners.optimal import solve_episodes
-    from cpp_mujoco.protocol.evaluate import protocol_budgets, protocol_episodes
-    from cpp_mujoco.protocol.optimum_cache import OptimumCache
-    from cpp_mujoco.review.optimum_table import optimum_summary
-
     grid_maps = [load_map(spec) for spec in args.map or bundled_maps()]
     kwargs = optimal_options(args)
     folder = kwargs["cache_folder"]
@@ -34,22 +44,3 @@ def cmd_optimum(args) -> None:
             progress=progress_wanted(args),
         )  # fmt: skip
         print(optimum_summary(grid_map, entries, cache.path))
-
-
-def add_optimum(sub) -> None:
-
-    p = sub.add_parser(
-        "optimum", help="solve the protocol's best missions (exact planner) into the cache"
-    )
-    p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
-    p.add_argument(
-        "--budget-step", type=int_at_least(1), default=1,
-        help="every n-th budget of each map's size class (16x16: 25..75), the largest always "
-        "included (default: %(default)s)",
-    )  # fmt: skip
-    p.add_argument(
-        "--first", type=int_at_least(1), help="only the protocol's first N episodes of each map"
-    )
-    add_solver_options(p)
-    add_progress_option(p)
-    p.set_defaults(func=cmd_optimum)

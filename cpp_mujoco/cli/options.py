@@ -34,6 +34,9 @@ RULES = {
 }
 TRAIN_HELP = "train the DDQN agent on a map"
 TRAIN_GENERAL_HELP = "train one DDQN agent for any map on generated maps"
+# the exact planner's solvers (cpp_mujoco.planners.optimal_solver.SOLVERS, named here so that
+# building the parser imports no planner; a test keeps them equal), the default first
+SOLVERS = ("highs", "cp-sat")
 DEFAULT_CACHE = "results/optimum"  # the committed cache of the bundled maps' protocol
 
 
@@ -79,20 +82,6 @@ def check_agent_file(spec: str) -> None:
             (f" such as {p}" for p in (path / "best.pt", path / "agent.pt") if p.is_file()), ""
         )
         raise ValueError(f"--agent {spec} is a folder; give a checkpoint file{hint}")
-
-
-def load_agent_for(spec: str, grid_map):
-    from cpp_mujoco.agent import load_agent
-
-    check_agent_file(spec)
-    agent = load_agent(spec)
-    shape = getattr(agent, "map_shape", grid_map.shape)
-    if shape is not None and tuple(shape) != grid_map.shape:  # None: a general agent, any size
-        raise ValueError(
-            f"agent {spec!r} was trained on {shape[0]}x{shape[1]} maps; map {grid_map.label!r} "
-            f"is {grid_map.shape[0]}x{grid_map.shape[1]}"
-        )
-    return agent
 
 
 def add_cell_pixels_option(p) -> None:
@@ -177,8 +166,6 @@ def positive_seconds(text: str) -> float:
 
 
 def add_solver_options(p) -> None:
-    from cpp_mujoco.planners.optimal_solver import SOLVERS
-
     p.add_argument(
         "--time-limit", type=positive_seconds, default=60.0, metavar="S",
         help="the exact planner's solver time per episode; a mission not proven by then is "
@@ -203,23 +190,6 @@ def add_solver_options(p) -> None:
         f"what is solved (default: the committed one, {DEFAULT_CACHE} of the checkout or the "
         "installed package's copy)",
     )  # fmt: skip
-
-
-def optimum_folder(args) -> str:
-    """``--optimum``, else the committed cache wherever the package runs from."""
-    from cpp_mujoco.protocol.optimum import default_folder
-
-    return args.optimum or str(default_folder() or DEFAULT_CACHE)
-
-
-def optimal_options(args) -> dict:
-    """``make_planner("optimal", optimal=...)``'s keyword arguments from the command line."""
-    from cpp_mujoco.planners.optimal_solver import SolverOptions
-
-    options = SolverOptions(
-        time_limit_s=args.time_limit, workers=args.solver_workers, solver=args.solver
-    )
-    return {"options": options, "cache_folder": optimum_folder(args), "jobs": args.jobs}
 
 
 def add_rule_option(p) -> None:

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from cpp_mujoco.grid.image import grid_image
 from cpp_mujoco.grid.mdp import GridConfig, StepOutcome
 from cpp_mujoco.grid.single_env import SingleGridEnv
 from cpp_mujoco.maps import GridMap, load_map
@@ -36,6 +37,5 @@ class GridEnv(SingleGridEnv):
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
-        from cpp_mujoco.grid.image import grid_image
 
         return grid_image(self.grid_map, self.mdp.coverage[0], self.mdp.position[0])

@@ -24,6 +24,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from cpp_mujoco.grid.actions import NUM_ACTIONS
+from cpp_mujoco.grid.image import grid_image
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.grid.spaces import (
     RENDER_MODES,
@@ -222,7 +223,6 @@ class GridVectorEnv(VectorEnv):
         """One (H·16, W·16, 3) map image per env (zones, coverage, UAV), as SyncVectorEnv."""
         if self.render_mode != "rgb_array":
             return None
-        from cpp_mujoco.grid.image import grid_image
 
         m = self.mdp
         return tuple(

@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass, fields, replace
 import numpy as np
 from scipy import ndimage
 
+from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.map_sets.size_classes import budget_range, map_size
 from cpp_mujoco.maps import MAX_SIDE, GridMap, MapError
 
@@ -92,8 +93,6 @@ def check_map(grid_map: GridMap, max_budget: int | None = None, fov_side: int = 
     all within ``max_budget`` (default: the map's size class maximum) — else no policy can cover
     anything and the map says nothing about a policy.
     """
-    from cpp_mujoco.grid.graph import build_graph
-
     if max_budget is None:
         max_budget = budget_range(map_size(grid_map.shape))[1]
     _, parts = ndimage.label(grid_map.landing)  # the default structure is 4-connectivity

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from cpp_mujoco.map_sets.generator import GENERATOR_VERSION, generate_from_seed
+from cpp_mujoco.map_sets.size_classes import budget_range
 from cpp_mujoco.maps import GridMap, MapError
 
 HELDOUT_SEEDS = range(1_000_000, 2_000_000)  # never for training
@@ -50,8 +52,6 @@ class MapSetSpec:
     def identity(self, evaluated: int | None = None) -> dict[str, object]:
         """What a result records about the set (``evaluated``: how many of its maps were used,
         the first ones; a partial set is marked so)."""
-        from cpp_mujoco.map_sets.size_classes import budget_range
-
         used = self.count if evaluated is None else evaluated
         return {
             "name": self.name,
@@ -102,8 +102,6 @@ def map_set_spec(name: str) -> MapSetSpec:
 
 def generate_map_set(spec: MapSetSpec, first: int | None = None) -> list[GridMap]:
     """The set's maps (the ``first`` of them, if given) as the generator makes them now."""
-    from cpp_mujoco.map_sets.generator import generate_from_seed
-
     seeds = spec.seeds if first is None else spec.seeds[:first]
     return [generate_from_seed(seed, spec.size, **dict(spec.options)) for seed in seeds]
 
@@ -112,8 +110,6 @@ def load_map_set(name: str, first: int | None = None) -> list[GridMap]:
     """The maps of set ``name`` (only its ``first`` maps, if given), each checked against its
     committed digest: a generator that no longer makes them is an error, never a silent
     change of the test set."""
-    from cpp_mujoco.map_sets.generator import GENERATOR_VERSION
-
     spec = map_set_spec(name)
     if first is not None and not 1 <= first <= spec.count:
         raise MapSetError(f"map set {name!r} has {spec.count} maps; cannot take the first {first}")

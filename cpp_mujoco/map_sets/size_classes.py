@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from cpp_mujoco.grid.mdp import GridConfig
+
 # side → (min budget, max budget); other sides scale the paper's 16 → 25..75 linearly
 SIZE_CLASSES: dict[int, tuple[int, int]] = {16: (25, 75), 32: (50, 150)}
 _PAPER_SIDE, _PAPER_MIN, _PAPER_MAX = 16, 25, 75
@@ -37,7 +39,5 @@ def map_size(shape: tuple[int, int]) -> int:
 def size_config(size: int, **overrides: Any):
     """The :class:`~cpp_mujoco.grid.mdp.GridConfig` of a size class (``overrides``: other
     fields, e.g. ``fov_side``)."""
-    from cpp_mujoco.grid.mdp import GridConfig
-
     low, high = budget_range(size)
     return GridConfig(min_budget=low, max_budget=high, **overrides)

@@ -16,8 +16,12 @@ import numpy as np
 
 from cpp_mujoco.maps import GridMap, bundled_maps, load_map
 from cpp_mujoco.missions.lineup import demo_policies
+from cpp_mujoco.missions.mission import fly_mission
 from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.protocol.physics_tasks import chunk_count
+from cpp_mujoco.review.plots import coverage_figure, trajectories_figure
+from cpp_mujoco.review.recording_tools import open_command
+from cpp_mujoco.review.report import invocation, write_report
 from cpp_mujoco.review.results import (
     DEMO_GRID_COLUMNS,
     TRANSFER_COLUMNS,
@@ -42,11 +46,6 @@ def run_demo(
 ) -> None:
     """``maps``: names, PNG paths or GridMaps (default: the bundled maps). ``command``: the
     command line shown atop ``index.html`` (default: this process's own)."""
-    from cpp_mujoco.missions.mission import fly_mission
-    from cpp_mujoco.review.plots import coverage_figure, trajectories_figure
-    from cpp_mujoco.review.recording_tools import open_command
-    from cpp_mujoco.review.report import invocation, write_report
-
     grid_maps = [load_map(m) for m in maps or bundled_maps()]
     budgets = protocol_budgets(step=budget_step)
     grid_table = Table("the paper's protocol on the grid", DEMO_GRID_COLUMNS)

@@ -11,6 +11,9 @@ import time
 from pathlib import Path
 
 from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.planners import SafeGreedyPlanner, WindSafeGreedyPlanner
+from cpp_mujoco.protocol.evaluate import evaluate
+from cpp_mujoco.review.plots import coverage_figure, trajectories_figure
 from cpp_mujoco.review.results import PROTOCOL_COLUMNS, Table, file_part, protocol_row, write_tables
 
 
@@ -18,8 +21,7 @@ def demo_policies(map: str | GridMap) -> list[tuple[str, object]]:  # noqa: A002
     """The policies the demo and the transfer tables compare: a bundled map's bundled agent
     (where there is one) and its wind-robust agent (``A-wind``, where there is one), then the
     safe greedy planner."""
-    from cpp_mujoco.agent import bundled_agents, load_agent
-    from cpp_mujoco.planners import SafeGreedyPlanner
+    from cpp_mujoco.agent import bundled_agents, load_agent  # heavy: torch, off the planners' runs
 
     grid_map = load_map(map)
     policies: list[tuple[str, object]] = []
@@ -36,8 +38,6 @@ def wind_variants(map: str | GridMap, guard: bool = True) -> list[tuple[str, obj
     planner that prices moves with the wind (``safe-greedy-wind``, the wind agents' guide), and
     with ``guard`` the paper agent and the planner again flown with the return guard
     (``name + guard``); a wind-robust agent flies as it is meant to, unguarded."""
-    from cpp_mujoco.planners import WindSafeGreedyPlanner
-
     policies = demo_policies(map)
     out = [(name, policy, False) for name, policy in policies]
     out.append(("safe-greedy-wind", WindSafeGreedyPlanner(), False))
@@ -71,9 +71,6 @@ def run_evaluation(
     ``{backend}_{map}_{policy}.json`` and a trajectories figure, per map a coverage figure, and
     the table as ``{backend}_tables.json``. Returns map label → results.
     """
-    from cpp_mujoco.protocol.evaluate import evaluate
-    from cpp_mujoco.review.plots import coverage_figure, trajectories_figure
-
     grid_maps = [load_map(m) for m in maps]
     table = Table(f"the paper's protocol ({backend})", PROTOCOL_COLUMNS)
     results: dict[str, list] = {}

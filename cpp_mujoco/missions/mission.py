@@ -24,6 +24,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from tqdm import tqdm
 
 import cpp_mujoco  # noqa: F401  (registers the envs)
 from cpp_mujoco.maps import GridMap, load_map
@@ -31,6 +32,8 @@ from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.protocol.episode import run_episode
 from cpp_mujoco.protocol.policy import check_fits, policy_name
+from cpp_mujoco.review.flight_review import ActionTap, FlightReview, outcome_status
+from cpp_mujoco.util.signals import Terminated
 
 # the grid backend's clock in the recording: one nominal move per action
 GRID_ACTION_S = PhysicsConfig().move_duration
@@ -91,11 +94,6 @@ def fly_mission(
     A policy that does not fit the map (an agent trained on another map) is refused
     (:class:`~cpp_mujoco.protocol.policy.MapMismatchError`) unless ``any_map``.
     """
-    from tqdm import tqdm
-
-    from cpp_mujoco.review.flight_review import ActionTap, FlightReview, outcome_status
-    from cpp_mujoco.review.recording import MissionRecorder
-
     grid_map = load_map(map)
     check_fits(policy, grid_map, any_map)
     if start is None:
@@ -118,6 +116,8 @@ def fly_mission(
     def open_review(obs, info) -> None:
         """After the reset (a bad start opens no file): the recording, the flight's cameras."""
         if rrd:
+            from cpp_mujoco.review.recording import MissionRecorder  # heavy: rerun, only for rrd
+
             about = {"policy": policy_name(policy), "backend": backend, "budget": budget,
                      "start": tuple(start), "seed": seed, **env_kwargs}  # fmt: skip
             review["recorder"] = MissionRecorder(
@@ -187,8 +187,6 @@ def fly_mission(
 
 
 def _reason(exc: BaseException) -> str:
-    from cpp_mujoco.util.signals import Terminated
-
     if isinstance(exc, Terminated):
         return "SIGTERM"
     if isinstance(exc, KeyboardInterrupt):

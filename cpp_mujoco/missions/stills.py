@@ -17,16 +17,19 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
+
+from cpp_mujoco.maps import load_map
+from cpp_mujoco.missions.lineup import demo_policies
+from cpp_mujoco.missions.mission import fly_mission
+from cpp_mujoco.physics.view.rendering import configure_gl
+from cpp_mujoco.util.io import atomic_path
 
 MAX_BYTES = 300_000  # a still in the docs stays small
 
 
 def _save_png(frame: np.ndarray, path: Path) -> Path:
     """Lossless PNG; a 256-colour palette if that would be too large (flat colours keep)."""
-    from PIL import Image
-
-    from cpp_mujoco.util.io import atomic_path
-
     image = Image.fromarray(frame)
     with atomic_path(path) as tmp:
         image.save(tmp, format="PNG", optimize=True)
@@ -40,11 +43,6 @@ def mission_stills(
 ) -> tuple[Path, Path]:
     """Fly the demo's mission on ``map_name``; write ``mission_<map>_start.png`` and
     ``mission_<map>_end.png`` (chase view, HUD) under ``out``; return their paths."""
-    from cpp_mujoco.maps import load_map
-    from cpp_mujoco.missions.lineup import demo_policies
-    from cpp_mujoco.missions.mission import fly_mission
-    from cpp_mujoco.physics.view.rendering import configure_gl
-
     configure_gl()
     grid_map = load_map(map_name)
     _, policy = demo_policies(grid_map)[0]

@@ -18,7 +18,7 @@ __all__ = ["ControllerGains", "MuJoCoEnv", "PhysicsConfig"]
 
 def __getattr__(name: str):
     if name == "MuJoCoEnv":
-        from cpp_mujoco.physics.envs.single import MuJoCoEnv
+        from cpp_mujoco.physics.envs.single import MuJoCoEnv  # heavy: MuJoCo, dm_control
 
         return MuJoCoEnv
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

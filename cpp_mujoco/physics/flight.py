@@ -42,6 +42,7 @@ from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.action import HOVER, LAND, MOVE, ActionResult, MacroActions
 from cpp_mujoco.physics.air.wind import Wind
 from cpp_mujoco.physics.airborne import AirborneSteps
+from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.control.controller import GeometricController, References
 from cpp_mujoco.physics.geometry import GridGeometry
@@ -176,8 +177,6 @@ class Flight:
     @classmethod
     def alone(cls, grid_map: GridMap, config: PhysicsConfig) -> Flight:
         """One drone over ``grid_map`` in an arena of its own (calibration, energy tables)."""
-        from cpp_mujoco.physics.arena import build_arena, compile_arena
-
         model = compile_arena(build_arena(grid_map, config))
         return cls(model, grid_map, config, 1, np.zeros((1, grid_map.target.size), dtype=bool))
 

@@ -18,8 +18,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cpp_mujoco.physics import tick_kernels as control_kernels
 from cpp_mujoco.physics.action import FAILURES, MacroActions
 from cpp_mujoco.physics.kernel_constants import control_constants
+from cpp_mujoco.physics.power import kernels as power_kernels
 from cpp_mujoco.physics.power.battery import OVERLOAD
 
 if TYPE_CHECKING:
@@ -31,9 +33,6 @@ class Tick:
     returns the drones that step next."""
 
     def __init__(self, flight: Flight):
-        from cpp_mujoco.physics import tick_kernels as control_kernels
-        from cpp_mujoco.physics.power import kernels as power_kernels
-
         self.k, self.p, self.f, self.failures = control_kernels, power_kernels, flight, FAILURES
         c, geo, (bx, by, bz) = flight.config, flight.geo, flight.bounds
         self.sense_c = np.array([

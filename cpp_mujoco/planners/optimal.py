@@ -17,6 +17,7 @@ import time
 from dataclasses import asdict
 
 import numpy as np
+from tqdm import tqdm
 
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import MapGraph, build_graph, graph_from_observation
@@ -85,8 +86,6 @@ def solve_episodes(
 ) -> list[dict]:
     """Each (start (row, col), budget) episode's cache entry, solving those not yet known (or
     known only from a shorter time limit and not proven). ``jobs`` processes solve at once."""
-    from tqdm import tqdm
-
     options = options or SolverOptions()
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")

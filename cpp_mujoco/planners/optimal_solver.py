@@ -20,7 +20,9 @@ import sys
 import time
 from dataclasses import dataclass
 
+import highspy
 import numpy as np
+import ortools
 
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import MapGraph
@@ -70,13 +72,9 @@ class Mission:
 def solver_version(solver: str = "highs") -> str:
     """The solver and release that solved (results name it)."""
     if solver == "highs":
-        import highspy
-
         v = (highspy.HIGHS_VERSION_MAJOR, highspy.HIGHS_VERSION_MINOR, highspy.HIGHS_VERSION_PATCH)
         return "HiGHS " + ".".join(map(str, v))
-    from ortools import __version__
-
-    return f"OR-Tools CP-SAT {__version__}"
+    return f"OR-Tools CP-SAT {ortools.__version__}"
 
 
 @dataclass
@@ -103,8 +101,6 @@ def _quiet(make):
 
 
 def _highs(model: EpisodeModel, options: SolverOptions, hint: np.ndarray | None) -> _Answer:
-    import highspy
-
     h = _quiet(highspy.Highs)
     h.setOptionValue("output_flag", False)
     h.setOptionValue("time_limit", float(options.time_limit_s))
@@ -139,7 +135,7 @@ def _highs(model: EpisodeModel, options: SolverOptions, hint: np.ndarray | None)
 
 
 def _cp_sat(model: EpisodeModel, options: SolverOptions, hint: np.ndarray | None) -> _Answer:
-    from ortools.sat.python import cp_model
+    from ortools.sat.python import cp_model  # heavy: CP-SAT takes 1.4 s, only --solver cp-sat
 
     cp = cp_model.CpModel()
     x = [cp.new_int_var(0, int(u), f"x{i}") for i, u in enumerate(model.upper)]

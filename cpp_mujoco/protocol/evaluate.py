@@ -19,14 +19,21 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from cpp_mujoco import __version__
 from cpp_mujoco.grid.graph import coverage_upper_bound, coverage_upper_bounds
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.map_sets.size_classes import map_size, size_config
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.protocol.episode import OnBatchStep, run_batch
 from cpp_mujoco.protocol.optimum import optimum_of, optimum_summary
-from cpp_mujoco.protocol.physics_engines import ENGINES  # what carries MuJoCo episodes
+from cpp_mujoco.protocol.physics_engines import (
+    ENGINES,  # what carries MuJoCo episodes
+    fly_episodes,
+    make_env,
+    records_to_arrays,
+)
 from cpp_mujoco.protocol.policy import Policy, as_policy, check_fits, policy_identity
 from cpp_mujoco.protocol.policy import policy_name as policy_label
 from cpp_mujoco.util.io import atomic_write_text, json_default
@@ -290,8 +297,6 @@ def _conditions(
     backend: str, budgets: np.ndarray, config: GridConfig, env_kwargs: dict
 ) -> dict[str, Any]:
     """What besides map and policy decided the numbers."""
-    from cpp_mujoco import __version__
-
     values = sorted({int(b) for b in budgets})
     gaps = set(np.diff(values).tolist())
     step = int(gaps.pop()) if len(gaps) == 1 else None
@@ -311,8 +316,6 @@ def _conditions(
 
 def _run_grid(policy, grid_map, starts, budgets, config, per_chunk, on_step, progress):
     """The grid protocol in chunks of ``per_chunk`` episodes; per-episode arrays as one batch."""
-    from tqdm import tqdm
-
     parts = []
     with tqdm(
         total=len(starts), desc=f"grid {grid_map.label}", unit="ep", disable=not progress
@@ -366,8 +369,6 @@ def _run_physics(
     engine, ray_address,
 ) -> dict:  # fmt: skip
     """Fly the protocol in MuJoCo; the env is built here first, so bad options fail at once."""
-    from cpp_mujoco.protocol.physics_engines import fly_episodes, make_env, records_to_arrays
-
     env_kwargs = {**physics_kwargs, "grid_config": config}
     env = make_env(grid_map, env_kwargs)
     conditions["physics_config"] = asdict(env.config)

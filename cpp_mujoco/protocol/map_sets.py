@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.map_sets.sets import MapSetSpec
@@ -34,7 +35,9 @@ from cpp_mujoco.protocol.evaluate import (
     protocol_budgets,
     split_conditions,
 )
+from cpp_mujoco.protocol.physics_tasks import make_env
 from cpp_mujoco.util.io import atomic_write_text, json_default, json_plain
+from cpp_mujoco.util.tables import format_table
 
 _NUMBERS = ("episodes", "landing_ratio", "coverage_ratio", "mean_return", "mean_steps")
 
@@ -115,8 +118,6 @@ class MapSetResult:
 
     def tables(self) -> tuple[str, str]:
         """(per map: each policy's landing and coverage; per policy: the means over the set)."""
-        from cpp_mujoco.util.tables import format_table
-
         names = self.policies
         per_map: dict[str, dict] = {}
         for r in self.rows:
@@ -177,8 +178,6 @@ def example_episode(result: EvaluationResult, budget: int) -> dict:
 def check_physics(spec: MapSetSpec, grid_map: GridMap, env_kwargs: dict | None = None) -> None:
     """Build the MuJoCo env of the set's first map before anything flies, so a set the physics
     cannot hold (or a bad weather option) fails at once, naming the set and its size."""
-    from cpp_mujoco.protocol.physics_tasks import make_env
-
     try:
         env = make_env(grid_map, {**(env_kwargs or {}), "grid_config": size_config(spec.size)})
     except ValueError as e:
@@ -208,8 +207,6 @@ def evaluate_map_set(
     (weather) and ``engine`` are :func:`~cpp_mujoco.protocol.evaluate.evaluate`'s, for MuJoCo;
     ``grid_wind``: on the grid, the wind option every episode draws its wind from (each row's
     conditions record it)."""
-    from tqdm import tqdm
-
     if not maps:
         raise ValueError(f"map set {spec.name!r}: no maps to evaluate")
     if len(maps) > spec.count:

@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from cpp_mujoco.protocol.episode import EpisodeRecord
 from cpp_mujoco.protocol.physics_tasks import (
@@ -53,6 +54,7 @@ from cpp_mujoco.protocol.physics_tasks import (
     make_env,
     one_torch_thread,
 )
+from cpp_mujoco.protocol.ray_engine import fly_on_ray
 from cpp_mujoco.util.io import atomic_write_bytes
 
 ENGINES = ("local", "ray")  # this machine's process pool, or Ray (an optional extra)
@@ -76,8 +78,6 @@ def fly_episodes(
     first, so a bad option fails before any worker starts. ``engine="local"``: ``workers``
     processes here (default: all cores; 1 flies in this process); ``"ray"``: Ray tasks on the
     runtime at ``ray_address`` (else ``RAY_ADDRESS``, else a local one with ``workers`` CPUs)."""
-    from tqdm import tqdm
-
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; available: {', '.join(ENGINES)}")
     if ray_address is not None and engine != "ray":
@@ -108,8 +108,6 @@ def fly_episodes(
             env.close()
             job = Job(pickle.dumps(policy), grid_map, env_kwargs)  # unpicklable: fails here
             if engine == "ray":
-                from cpp_mujoco.protocol.ray_engine import fly_on_ray
-
                 records = fly_on_ray(job, work, bar, workers, ray_address)
             else:
                 records = _fly_in_pool(job, work, workers, bar)

@@ -14,8 +14,10 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
+import cpp_mujoco  # noqa: F401  (registers the envs)
 from cpp_mujoco.protocol.episode import EpisodeRecord, run_vector_episodes
 
 # A worker's task is a chunk of episodes flown together in one batched env. The control tick
@@ -48,10 +50,6 @@ _STATE: dict[str, Any] = {}  # this worker process's job key, env and policy
 
 def make_env(grid_map, env_kwargs: dict):
     """The unwrapped ``MuJoCo-v0`` env; raises the env's own error for a bad option."""
-    import gymnasium as gym
-
-    import cpp_mujoco  # noqa: F401  (registers the envs)
-
     return gym.make("cpp_mujoco/MuJoCo-v0", map=grid_map, **env_kwargs).unwrapped
 
 
@@ -81,7 +79,7 @@ class VectorEnvs:
 
     def get(self, n: int):
         if n not in self._envs:
-            from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
+            from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv  # heavy: MuJoCo
 
             self._envs[n] = MuJoCoVectorEnv(
                 num_envs=n, map=self.grid_map, autoreset_mode="Disabled", **self.env_kwargs

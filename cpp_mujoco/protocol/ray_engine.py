@@ -40,7 +40,7 @@ class RayMissingError(ImportError):
 def import_ray() -> Any:
     """The ``ray`` module, or :class:`RayMissingError` naming the extra that brings it."""
     try:
-        import ray
+        import ray  # optional: the ray extra
     except ImportError as exc:
         raise RayMissingError(
             f"the Ray engine needs Ray, which is not installed: {INSTALL_HINT}"

@@ -23,6 +23,7 @@ from cpp_mujoco.protocol.evaluate import (
     protocol_budgets,
     split_conditions,
 )
+from cpp_mujoco.protocol.ray_engine import ray_runtime
 
 # The wind up to which the flight keeps out of no-fly airspace (``nfz_violations == 0`` over the
 # protocol on the bundled maps, every bundled policy; measured by ``scripts/rated_wind.py``):
@@ -118,8 +119,6 @@ def evaluate_in_winds(
     directions = COMPASS if wind_speed > 0 else (0.0,)
     runtime = nullcontext()
     if engine == "ray":
-        from cpp_mujoco.protocol.ray_engine import ray_runtime
-
         runtime = ray_runtime(ray_address, workers)
     with runtime:
         parts = [

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from cpp_mujoco.grid.actions import ACTION_NAMES
+from cpp_mujoco.physics.view.rendering import VideoWriter
 from cpp_mujoco.review.hud import Hud, HudState, view_up_heading, wind_heading
 
 __all__ = ["ActionTap", "FlightReview", "hud_state", "outcome_status"]
@@ -111,9 +112,8 @@ class FlightReview:
         on_chase_frame: Callable[[np.ndarray], None] | None = None,
         hud: bool = True,
     ):
-        from cpp_mujoco.physics.view.chase import chase_camera, onboard_camera
-        from cpp_mujoco.physics.view.rendering import VideoWriter
-        from cpp_mujoco.physics.view.scenery import Scenery
+        from cpp_mujoco.physics.view.chase import chase_camera, onboard_camera  # heavy: MuJoCo
+        from cpp_mujoco.physics.view.scenery import Scenery  # heavy: MuJoCo, dm_control
 
         self.env, self.recorder, self.image_every = env, recorder, image_every
         self.about, self.tap, self.on_chase_frame = about, tap, on_chase_frame

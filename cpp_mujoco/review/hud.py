@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from PIL import Image, ImageDraw, ImageFont
 
 __all__ = ["Hud", "HudState", "hud_lines", "view_up_heading", "wind_heading"]
 
@@ -77,8 +78,6 @@ def view_up_heading(cam_xmat) -> float:
 
 
 def _font(size: int):
-    from PIL import ImageFont
-
     try:
         return ImageFont.load_default(size=size)
     except (TypeError, ImportError, OSError):  # Pillow < 10.1, or no FreeType: the bitmap font
@@ -100,8 +99,6 @@ class _Stamp:
         """(alpha mask, x offset, y offset, advance) of one character."""
         glyph = self._glyphs.get(ch)
         if glyph is None:
-            from PIL import Image, ImageDraw
-
             left, top, right, bottom = (int(v) for v in self.font.getbbox(ch))
             w, h = max(right - left, 0), max(bottom - top, 0)
             image = Image.new("L", (max(w, 1), max(h, 1)))
@@ -202,8 +199,6 @@ class Hud:
 
     def _wind(self, out: np.ndarray, box: tuple[int, int, int, int], state: HudState) -> None:
         """A circle with an arrow the way the wind blows in this view, the speed under it."""
-        from PIL import Image, ImageDraw
-
         bx, by, bx1, by1 = box
         sub = out[by:by1, bx:bx1]
         image = Image.fromarray(sub)

@@ -21,8 +21,10 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from cpp_mujoco.map_sets.generator import GENERATOR_VERSION, generate_from_seed
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.review.plots import COVERAGE_LABEL, draw_trajectory, map_legend, save_figure
+from cpp_mujoco.review.results import weather
 from cpp_mujoco.util.tables import backend_name
 
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -121,8 +123,6 @@ def grid_wind(data: dict) -> dict | None:
 def run_label(data: dict) -> str:
     """``grid, budgets 25..75 step 25``, ``grid (wind 9 m/s, N/E/S/W), budgets ...`` or
     ``MuJoCo (9 m/s N), budgets ...``."""
-    from cpp_mujoco.review.results import weather
-
     b = data["budgets"]
     budgets = f"budgets {b['min']}..{b['max']} step {b['step']}"
     backend = backend_name(data["backend"])
@@ -205,7 +205,6 @@ def result_grid_map(data: dict, row: dict, grid_maps: Mapping[str, GridMap] | No
     """A row's map: the one given, else regenerated from its seed and checked by its digest."""
     if grid_maps and row["map"] in grid_maps:
         return grid_maps[row["map"]]
-    from cpp_mujoco.map_sets.generator import GENERATOR_VERSION, generate_from_seed
 
     grid_map = generate_from_seed(int(row["seed"]), int(data["map_set"]["size"]))
     if grid_map.digest != row["map_digest"]:

@@ -20,6 +20,7 @@ from cpp_mujoco.grid.coverage import square_fov_union
 from cpp_mujoco.grid.image import COLORS, zone_colors
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.protocol.evaluate import EvaluationResult
+from cpp_mujoco.review.results import weather, wind_speed
 from cpp_mujoco.util.io import atomic_path
 from cpp_mujoco.util.tables import backend_name
 
@@ -49,8 +50,6 @@ def budgets_text(results: Sequence[EvaluationResult]) -> str:
 def conditions_text(results: Sequence[EvaluationResult]) -> str:
     """The weather each backend flew in and the budgets, for a title (``MuJoCo: 9 m/s N +
     moderate turbulence; grid: calm; budgets 25..75 step 5``)."""
-    from cpp_mujoco.review.results import weather
-
     by_backend: dict[str, set[str]] = {}
     for r in results:
         by_backend.setdefault(backend_name(r.backend), set()).add(weather(r))
@@ -267,8 +266,6 @@ def wind_sweep_figure(results: Sequence[EvaluationResult], path: str | os.PathLi
 def wind_sweep_plot(results: Sequence[EvaluationResult]) -> Figure:
     """Landing and coverage ratio against the steady wind, one line per map, policy and backend
     (the wind and the weather are read from each result's conditions)."""
-    from cpp_mujoco.review.results import weather, wind_speed
-
     fig = Figure(figsize=(11, 4.4))
     axes = fig.subplots(1, 2)
     keys = dict.fromkeys((r.map_name, r.policy_name, r.backend) for r in results)

@@ -36,6 +36,7 @@ from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
 from cpp_mujoco.review.recording_tools import blueprint, compact
+from cpp_mujoco.util.io import WriteError, _reason
 
 __all__ = ["MissionRecorder", "batcher_config", "blueprint"]
 
@@ -322,8 +323,6 @@ class MissionRecorder:
     def _flush(self) -> None:
         """Flush to the file; a failed write (full disk, size limit) is a one-line WriteError —
         rerun's own flush would wait forever for a writer that cannot write."""
-        from cpp_mujoco.util.io import WriteError, _reason
-
         try:
             self.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
         except RuntimeError as exc:  # rerun's file writer died (full disk, file size limit)

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from html import escape
 from pathlib import Path
 
+from cpp_mujoco import __version__
 from cpp_mujoco.review.report_sections import (
     figures_html,
     link,
@@ -142,8 +143,6 @@ def scan(folder: Path) -> Folder:
 
 def build_report(folder: str | os.PathLike, command: str | None, title: str | None = None) -> str:
     """The page's HTML for ``folder`` as it is now."""
-    from cpp_mujoco import __version__
-
     path = Path(folder)
     found = scan(path)
     shown = str(folder)

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 from urllib.parse import quote
 
 from cpp_mujoco.review.report_conditions import conditions_summary, merge
+from cpp_mujoco.review.results import file_part
 from cpp_mujoco.util.tables import backend_name
 
 if TYPE_CHECKING:
@@ -139,7 +140,6 @@ def _figure_entries(stem: str, found: Folder) -> list[dict]:
     with, of the map and policy it names (``transfer_A_ddqn_A``: the transfer row of A and
     ``ddqn[A]``); result files named inside its name or by its map (``grid_A_coverage``); the
     table file of the same name (``wind_sweep``); the table rows of the map it names."""
-    from cpp_mujoco.review.results import file_part
 
     def result(r: dict) -> dict:
         return {**r, "conditions": {"backend": r.get("backend"), **(r.get("conditions") or {})}}

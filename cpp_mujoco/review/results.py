@@ -6,9 +6,6 @@ number has one format and one label wherever it is shown. Each row carries its m
 user's ``A.png`` is ``A-<digest>``, never map A) and digest, the policy, the backend, the raw
 numbers beside the shown cells, and the conditions of its results. A table's JSON states the
 conditions all its rows share once, and in each row only what differs (a wind speed, budgets).
-
-Imports stay light at module level: the CLI imports this only inside its commands anyway, and
-the scripts pay for what they use.
 """
 
 from __future__ import annotations
@@ -22,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.protocol.evaluate import split_conditions
+from cpp_mujoco.protocol.evaluate import PAPER_LANDING_RATIO, split_conditions
+from cpp_mujoco.review.report_conditions import weather_summary
 from cpp_mujoco.util.io import atomic_write_text, json_plain
 from cpp_mujoco.util.tables import format_table
 
@@ -59,8 +57,6 @@ def file_part(name: str) -> str:
 
 def paper_landing(grid_map: GridMap) -> float | None:
     """The paper's landing ratio, only beside the bundled map it was measured on."""
-    from cpp_mujoco.protocol.evaluate import PAPER_LANDING_RATIO
-
     return PAPER_LANDING_RATIO.get(grid_map.name) if grid_map.bundled else None
 
 
@@ -176,8 +172,6 @@ def wind_row(result) -> dict:
 def weather(result) -> str:
     """The weather a result was flown in, as one cell (``calm``, ``9 m/s N/E/S/W + moderate
     turbulence``): :func:`~cpp_mujoco.review.report_conditions.weather_summary`, the one rule."""
-    from cpp_mujoco.review.report_conditions import weather_summary
-
     return weather_summary(result.conditions) or "calm"
 
 

@@ -20,6 +20,8 @@ from dataclasses import asdict, dataclass, is_dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 
 class WriteError(OSError):
     """A file could not be written; the target (if it existed) is unchanged."""
@@ -105,8 +107,6 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
 def json_default(value: Any) -> Any:
     """``json.dumps(default=...)`` for results: numpy scalars/arrays and dataclasses (options
     given as numpy values, configs) become plain JSON; anything else is an error."""
-    import numpy as np
-
     if isinstance(value, np.generic | np.ndarray):
         return value.tolist()
     if is_dataclass(value) and not isinstance(value, type):

@@ -157,7 +157,7 @@ class DrydenTurbulence:
         """``ticks`` consecutive gusts (u, v, w in m/s, (ticks, 3)) at a fixed airspeed, the
         filters started from their stationary distribution: the flight's own kernel, fed the
         normals in the order a drone's wind takes them (blocks of 1000 popped from the end)."""
-        from cpp_mujoco.physics.tick_kernels import dryden_step
+        from cpp_mujoco.physics.tick_kernels import dryden_step  # heavy: numba, off physics.config
 
         need = 5 + 5 * ticks
         blocks = [rng.standard_normal(1000)[::-1] for _ in range(-(-need // 1000))]

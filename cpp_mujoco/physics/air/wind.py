@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cpp_mujoco.physics import tick_kernels as kernels
 from cpp_mujoco.physics.air.turbulence import DrydenParams, DrydenTurbulence
 from cpp_mujoco.physics.kernel_constants import MAX_KEYS, control_constants
 
@@ -154,8 +155,6 @@ class Wind:
     def velocity(self, drones: np.ndarray, time: np.ndarray, position: np.ndarray) -> np.ndarray:
         """The wind (m, 3) drones ``drones`` at ``position`` (m, 3) fly in this tick; their
         gusts and turbulence advance one tick (:class:`~cpp_mujoco.physics.parts.WindModel`)."""
-        from cpp_mujoco.physics import tick_kernels as kernels
-
         drones = np.asarray(drones, dtype=np.int64)
         pos = np.ascontiguousarray(position, dtype=float)
         c, out = control_constants(self.dt, wind=self), np.empty((drones.size, 3))

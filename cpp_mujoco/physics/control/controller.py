@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from cpp_mujoco.physics import tick_kernels as kernels
 from cpp_mujoco.physics.config import ControllerGains
 from cpp_mujoco.physics.kernel_constants import GRAVITY, control_constants
 from cpp_mujoco.physics.quadrotor import QuadrotorParams
@@ -109,8 +110,6 @@ class GeometricController:
         """Rotor thrusts (m, 4) for ``drones``: the compiled law as a
         :class:`~cpp_mujoco.physics.parts.Controller` (the flight runs the same kernel fused
         into its tick when this is its controller)."""
-        from cpp_mujoco.physics import tick_kernels as kernels
-
         m = len(drones)
         out = np.empty((m, 4))
         rows = [np.ascontiguousarray(x, dtype=float).reshape(m, -1)

@@ -28,6 +28,7 @@ from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.envs.episodes import BUDGET_EXHAUSTED, FlightEpisodes
 from cpp_mujoco.physics.parts import Controller, WindModel
+from cpp_mujoco.physics.view.chase import chase_camera
 
 __all__ = ["BUDGET_EXHAUSTED", "MuJoCoEnv", "make_configs", "split_kwargs"]
 
@@ -146,8 +147,6 @@ class MuJoCoEnv(SingleGridEnv):
         if self.render_mode != "rgb_array":
             return None
         if self._camera is None:
-            from cpp_mujoco.physics.view.chase import chase_camera
-
             # the coverage row is marked in place by the flight: the seen cells light up live
             self._camera = chase_camera(self.model, *self.render_size, coverage=self.mdp.coverage)
             # freed at exit too: a GL context left to interpreter teardown fails noisily

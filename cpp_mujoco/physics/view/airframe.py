@@ -12,12 +12,8 @@ a climb, a hover and the motors stopping after a landing.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
+import mujoco
 import numpy as np
-
-if TYPE_CHECKING:
-    import mujoco
 
 __all__ = ["AIRFRAME_SCALE", "Airframe"]
 
@@ -56,8 +52,6 @@ class Airframe:
     """
 
     def __init__(self, model: mujoco.MjModel, scale: float = AIRFRAME_SCALE, body: str = BODY):
-        import mujoco
-
         self.body_id = int(model.body(body).id)
         self.scale = scale
         try:  # the four thrusters, in _ROTORS' order
@@ -117,8 +111,6 @@ class Airframe:
 
     def decorate(self, scene: mujoco.MjvScene, data: mujoco.MjData) -> None:
         """Append the airframe at the body's pose (nothing when the scene is full)."""
-        import mujoco
-
         n = self.geom_count
         if scene.ngeom + n > scene.maxgeom:
             return

@@ -20,18 +20,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+import mujoco
 import numpy as np
 
+from cpp_mujoco.physics.view.airframe import Airframe
 from cpp_mujoco.physics.view.rendering import OffscreenCamera
-
-if TYPE_CHECKING:
-    import mujoco
-
-    from cpp_mujoco.physics.view.airframe import Airframe
-    from cpp_mujoco.physics.view.scenery import Scenery
-    from cpp_mujoco.physics.view.trail import Trail
+from cpp_mujoco.physics.view.scenery import Scenery
+from cpp_mujoco.physics.view.trail import Trail
 
 __all__ = ["ChaseCamera", "ChaseRig", "MissionDecor", "chase_camera", "onboard_camera"]
 
@@ -175,8 +172,6 @@ class ChaseCamera(OffscreenCamera):
     model's own small airframe is hidden when the decor draws the enlarged one."""
 
     def __init__(self, model: mujoco.MjModel, rig: ChaseRig | None = None, **kwargs: Any):
-        import mujoco
-
         super().__init__(model, **kwargs)
         self.rig = rig or ChaseRig()
         self.body_id = int(model.body(BODY).id)
@@ -218,10 +213,6 @@ def chase_camera(
 ) -> ChaseCamera:
     """The mission's chase camera: map (``scenery``; None: the one stored in an arena model),
     ``coverage`` lighter, the trail and the enlarged airframe, a :class:`ChaseRig`'s view."""
-    from cpp_mujoco.physics.view.airframe import Airframe
-    from cpp_mujoco.physics.view.scenery import Scenery
-    from cpp_mujoco.physics.view.trail import Trail
-
     if scenery is None:
         scenery = Scenery.from_model(model)
     decor = MissionDecor(
@@ -239,8 +230,6 @@ def onboard_camera(
 ) -> OffscreenCamera:
     """The downward camera with the map and ``coverage`` (no trail, no airframe: the camera
     hangs under the body and looks away from both)."""
-    from cpp_mujoco.physics.view.scenery import Scenery
-
     if scenery is None:
         scenery = Scenery.from_model(model)
     decor = MissionDecor(model, scenery, coverage)

@@ -14,6 +14,7 @@ unless asked for.
 from __future__ import annotations
 
 import ctypes.util
+import errno
 import importlib
 import os
 import subprocess
@@ -22,9 +23,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import imageio.v2 as imageio
 import numpy as np
 
-from cpp_mujoco.util.io import _umask
+from cpp_mujoco.util.io import _umask, atomic_path
+from cpp_mujoco.util.signals import deferred
 
 GL_BACKENDS = ("egl", "osmesa")
 _GL_MODULE = "mujoco.rendering.classic.gl_context"  # where MuJoCo 3.x binds its GLContext
@@ -166,7 +169,7 @@ class OffscreenCamera:
         decorate: Callable[[Any, Any], None] | None = None,
         light_scale: float = LIGHT_SCALE,
     ):
-        import mujoco
+        import mujoco  # GL: this module chooses the backend, importable before MuJoCo
 
         select_gl()  # the first render chooses the GL backend (see the module docstring)
         max_geom = DEFAULT_MAX_GEOM + int(getattr(decorate, "geom_count", 0))
@@ -196,7 +199,7 @@ class OffscreenCamera:
 
     def render(self, data) -> np.ndarray:
         """(H, W, 3) uint8 frame of the current state."""
-        import mujoco
+        import mujoco  # GL: this module chooses the backend, importable before MuJoCo
 
         self.renderer.update_scene(data, camera=self.camera, scene_option=self.scene_option)
         scene = self.renderer.scene
@@ -227,8 +230,6 @@ def _one_line_error(exc: BaseException, folder: Path) -> BaseException:
     """imageio-ffmpeg reports a failed pipe as a multi-line ``IOError`` (the ffmpeg command and
     an empty stderr); make it one line, and name a full disk before the temporary file is removed
     (which frees the space again)."""
-    import errno
-
     if not isinstance(exc, OSError) or exc.errno is not None:
         return exc
     try:
@@ -262,10 +263,6 @@ class VideoWriter:
     """
 
     def __init__(self, path: str | os.PathLike, fps: float = 20.0):
-        import imageio.v2 as imageio
-
-        from cpp_mujoco.util.io import atomic_path
-
         self.path = Path(path)
         self.partial_path = self.path.with_name(f"{self.path.stem}.partial{self.path.suffix}")
         self.frames = 0
@@ -294,8 +291,6 @@ class VideoWriter:
         raise error
 
     def write(self, frame: np.ndarray) -> None:
-        from cpp_mujoco.util.signals import deferred
-
         if self._closed:
             raise ValueError(f"video {self.path} is already closed")
         try:

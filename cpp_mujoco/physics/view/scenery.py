@@ -9,24 +9,23 @@ plane ever collides. So the model keeps the ground, the camera, the light and th
 and a raised kerb around each landing area, so where the UAV may land reads from any view.
 
 The arena stores the map in the model (a ``<custom><numeric>`` field, which the physics never
-reads), so :meth:`Scenery.from_model` redraws it from a compiled model alone. Light on purpose: no
-GL, and MuJoCo only when a scene is decorated.
+reads), so :meth:`Scenery.from_model` redraws it from a compiled model alone. No GL here: the
+tiles go into a scene whatever renders it.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import mujoco
 import numpy as np
 
 from cpp_mujoco.physics.arena import SCENERY_NUMERIC
+from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
 
 if TYPE_CHECKING:
-    import mujoco
-
     from cpp_mujoco.maps import GridMap
-    from cpp_mujoco.physics.config import PhysicsConfig
 
 __all__ = [
     "KERB_RGBA", "NFZ_VOLUME_RGBA", "TILE_GAP", "ZONE_RGBA", "Scenery", "SceneryError",
@@ -115,8 +114,6 @@ class Scenery:
         if isinstance(config, GridGeometry):
             geometry = config
             if volume_height is None:
-                from cpp_mujoco.physics.config import PhysicsConfig
-
                 volume_height = 2 * PhysicsConfig().altitude
         else:
             geometry = GridGeometry.of(grid_map, config.cell_size)
@@ -148,8 +145,6 @@ class Scenery:
         return self
 
     def _build(self, landing, target, nfz, geometry: GridGeometry, volume_height: float) -> None:
-        import mujoco
-
         self.geometry = geometry
         self.volume_height = volume_height
         xy = geometry.centers()
@@ -206,8 +201,6 @@ class Scenery:
         no-fly volumes to ``scene``; call after ``update_scene`` and before rendering.
         :class:`SceneryError` if the scene has no room for them (``maxgeom``), rather than a map
         drawn in part."""
-        import mujoco
-
         colours = list(self._colours(seen))
         start = scene.ngeom
         if start + self.geom_count > scene.maxgeom:

@@ -13,12 +13,8 @@ from the camera as near it.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
+import mujoco
 import numpy as np
-
-if TYPE_CHECKING:
-    import mujoco
 
 __all__ = ["TRAIL_RGBA", "Trail"]
 
@@ -72,8 +68,6 @@ class Trail:
 
     def decorate(self, scene: mujoco.MjvScene) -> None:
         """Append the polyline's segments (as many as fit: a trail is never worth an error)."""
-        import mujoco
-
         if self.head is None:
             return
         path = [*self.points, self.head] if self.points[-1] is not self.head else self.points

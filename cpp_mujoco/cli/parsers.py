@@ -1,0 +1,216 @@
+"""The subcommands' parsers (all but ``train`` and ``train-general``, whose options come from the
+training configs: :mod:`~cpp_mujoco.cli.train`, :mod:`~cpp_mujoco.cli.train_general`).
+
+Each ``add_*(subparsers)`` adds one subcommand and sets ``func`` to its command as
+``"module:function"``: :func:`cpp_mujoco.cli.main.command` imports that module when the command
+runs, so building the parser imports nothing numerical and ``--help`` answers at once. The
+commands live in one module each: :mod:`~cpp_mujoco.cli.maps` (``maps draw``, ``maps generate``,
+``evaluate --map-set``), :mod:`~cpp_mujoco.cli.evaluate`, :mod:`~cpp_mujoco.cli.fly`,
+:mod:`~cpp_mujoco.cli.optimum`, :mod:`~cpp_mujoco.cli.demo`, :mod:`~cpp_mujoco.cli.benchmark`.
+"""
+
+from __future__ import annotations
+
+from cpp_mujoco.cli.options import (
+    PLANNER_NAMES,
+    add_any_map_option,
+    add_cell_pixels_option,
+    add_progress_option,
+    add_rule_option,
+    add_solver_options,
+    add_wind_options,
+    add_workers_option,
+    int_at_least,
+)
+
+DEFAULT_SIZE = 16  # maps generate: the maps' side
+# cpp-mujoco benchmark's sections: a module with ``run() -> dict`` each (a flat dict of numbers),
+# imported only when its section runs
+SECTIONS: dict[str, str] = {
+    "grid": "cpp_mujoco.bench.grid",
+    "physics": "cpp_mujoco.bench.physics",
+    "training": "cpp_mujoco.bench.agent",
+    "review": "cpp_mujoco.bench.review",
+}
+
+
+def add_generate_options(p) -> None:
+    p.add_argument("count", type=int_at_least(1), metavar="N", help="how many maps to write")
+    p.add_argument("--out", required=True, help="the folder for the PNG maps")
+    p.add_argument(
+        "--seed", type=int_at_least(0), default=0,
+        help="the first map's seed; the n-th map is seed + n (default: %(default)s). "
+        "Seeds 1000000..1999999 are the held-out test sets': never train on them",
+    )  # fmt: skip
+    p.add_argument(
+        "--size", type=int_at_least(8), default=DEFAULT_SIZE,
+        help="the maps' side, cells (default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--door-wall", type=float, metavar="P",
+        help="the chance each map has a wall across it with one door of 1-2 cells, as on map C "
+        "(default: 0, the held-out v1 sets' generator)",
+    )  # fmt: skip
+    p.add_argument(
+        "--overwrite", action="store_true",
+        help="write into a non-empty --out (maps of the same name are replaced)",
+    )  # fmt: skip
+
+
+def add_map_set_options(p) -> None:
+    p.add_argument(
+        "--map-set", metavar="NAME",
+        help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1, doors16-v1: "
+        "every map with a wall and one door), flown on "
+        "--backend with its size class's budgets (16x16: 25..75, 32x32: 50..150); writes a JSON "
+        "and its figures (per-map coverage, example trajectories) into --out",
+    )  # fmt: skip
+    p.add_argument(
+        "--first", type=int_at_least(1), metavar="N",
+        help="with --map-set: only its first N maps, for a quick look (results say so)",
+    )  # fmt: skip
+
+
+def add_maps(sub) -> None:
+    p = sub.add_parser(
+        "maps", help="draw maps (maps draw, the default) or generate random ones (maps generate)"
+    )
+    p.set_defaults(func="cpp_mujoco.cli.maps:cmd_draw")
+    kinds = p.add_subparsers(
+        dest="maps_command", metavar="{draw,generate}", help="draw (the default) or generate"
+    )
+    draw = kinds.add_parser("draw", help="draw maps as the paper's colour figure, list cell counts")
+    draw.add_argument(
+        "--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)"
+    )
+    add_cell_pixels_option(draw)
+    draw.add_argument("--out", help="folder for the figures (default: out/maps)")
+    draw.set_defaults(func="cpp_mujoco.cli.maps:cmd_draw")
+    generate = kinds.add_parser("generate", help="write random maps in the paper's style as PNGs")
+    add_generate_options(generate)
+    generate.set_defaults(func="cpp_mujoco.cli.maps:cmd_generate")
+
+
+def add_evaluate(sub) -> None:
+    p = sub.add_parser("evaluate", help="run the paper's protocol for planners and agents")
+    p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
+    add_cell_pixels_option(p)
+
+    add_map_set_options(p)
+    p.add_argument(
+        "--planner", nargs="*", default=[], choices=PLANNER_NAMES,
+        help="reference planners (default: all three, when no --agent is given)",
+    )  # fmt: skip
+    p.add_argument(
+        "--agent", nargs="*", default=[],
+        help="trained agents: a bundled agent name (A) or a checkpoint file",
+    )  # fmt: skip
+    add_rule_option(p)
+    add_any_map_option(p)
+    p.add_argument(
+        "--backend", default="grid", choices=["grid", "mujoco"],
+        help="simulate on the grid or fly in MuJoCo (default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--budget-step", type=int_at_least(1), default=1,
+        help="every n-th budget of each map's size class (16x16: 25..75, 32x32: 50..150), the "
+        "largest always included (default: %(default)s, all)",
+    )  # fmt: skip
+    add_workers_option(p)
+    p.add_argument(
+        "--ray", action="store_true",
+        help="mujoco: fly the episodes as Ray tasks (pip install -e .[ray]); a local Ray runtime "
+        "of --workers CPUs unless --ray-address or RAY_ADDRESS names a cluster",
+    )  # fmt: skip
+    p.add_argument("--ray-address", help="with --ray: the Ray cluster to fly on (HOST:PORT)")
+    add_wind_options(p)
+
+    add_solver_options(p)
+    p.add_argument(
+        "--grid-wind", type=float, default=None, metavar="SPEED",
+        help="grid, with --map-set: the grid's wind option, SPEED m/s in every episode from one "
+        "of the four compass directions, with the calibrated gusts (file names carry it)",
+    )  # fmt: skip
+    p.add_argument(
+        "--out", default="out/evaluate", help="folder for JSON and figures (default: %(default)s)"
+    )
+    add_progress_option(p)
+    p.set_defaults(func="cpp_mujoco.cli.evaluate:cmd_evaluate")
+
+
+def add_fly(sub) -> None:
+    p = sub.add_parser("fly", help="fly one mission; write a Rerun recording and videos")
+    p.add_argument("--map", default="A", help="bundled map name or PNG path (default: A)")
+    add_cell_pixels_option(p)
+    p.add_argument(
+        "--agent", help="bundled agent name or checkpoint file (default: a bundled map's agent)"
+    )
+    p.add_argument("--planner", choices=PLANNER_NAMES, help="fly a reference planner instead")
+    add_any_map_option(p)
+    p.add_argument(
+        "--budget", type=int_at_least(1), default=40, help="movement budget (default: 40)"
+    )
+    p.add_argument("--start", help="start cell ROW,COL (default: the first landing cell)")
+    p.add_argument(
+        "--backend", default="mujoco", choices=["mujoco", "grid"],
+        help="fly in MuJoCo or step the grid MDP (default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--seed", type=int_at_least(0), default=0, help="seed of the wind gusts (default: 0)"
+    )
+    add_wind_options(p)
+    p.add_argument("--rrd", help="write a Rerun recording here (open with: rerun PATH)")
+    p.add_argument("--video", help="write the chase camera's MP4 here")
+    p.add_argument("--onboard-video", help="write the downward camera's MP4 here")
+    p.add_argument(
+        "--gl", choices=["egl", "osmesa"], help="offscreen GL (default: egl, else osmesa)"
+    )
+    add_progress_option(p)
+    p.set_defaults(func="cpp_mujoco.cli.fly:cmd_fly")
+
+
+def add_optimum(sub) -> None:
+    p = sub.add_parser(
+        "optimum", help="solve the protocol's best missions (exact planner) into the cache"
+    )
+    p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
+    p.add_argument(
+        "--budget-step", type=int_at_least(1), default=1,
+        help="every n-th budget of each map's size class (16x16: 25..75), the largest always "
+        "included (default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--first", type=int_at_least(1), help="only the protocol's first N episodes of each map"
+    )
+    add_solver_options(p)
+    add_progress_option(p)
+    p.set_defaults(func="cpp_mujoco.cli.optimum:cmd_optimum")
+
+
+def add_demo(sub) -> None:
+    p = sub.add_parser(
+        "demo", help="the README's main job: agents on the grid and in MuJoCo, recordings, videos"
+    )
+    p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
+    p.add_argument("--out", default="out/demo", help="folder for results (default: %(default)s)")
+    p.add_argument(
+        "--budget-step", type=int_at_least(1), default=10,
+        help="MuJoCo protocol: every n-th budget of 25..75, 1 = all (default: %(default)s)",
+    )  # fmt: skip
+    add_workers_option(p)
+    add_progress_option(p)
+    p.set_defaults(func="cpp_mujoco.cli.demo:cmd_demo")
+
+
+def add_benchmark(sub) -> None:
+    p = sub.add_parser("benchmark", help="measure env, planner, training and physics speed")
+    p.add_argument(
+        "--only", nargs="*", default=[],
+        help=f"sections to run: {' '.join(SECTIONS)} (default: all)",
+    )  # fmt: skip
+    p.add_argument(
+        "--json", default="out/benchmark.json",
+        help="where to write the JSON report (default: %(default)s)",
+    )  # fmt: skip
+    add_progress_option(p)
+    p.set_defaults(func="cpp_mujoco.cli.benchmark:cmd_benchmark")
