@@ -199,10 +199,10 @@ def test_the_parsers_solvers_are_the_exact_planners():
 
 
 def test_evaluate_in_mujoco_records_the_turbulence_it_flew(tmp_path, capsys, monkeypatch):
-    import cpp_mujoco.cli.evaluate as evaluate_command
+    import cpp_mujoco.protocol.evaluate as protocol
 
     # before: no --turbulence option; a run in turbulence could not be asked for from the CLI
-    monkeypatch.setattr(evaluate_command, "protocol_budgets", lambda config=None, step=1: [4])
+    monkeypatch.setattr(protocol, "protocol_budgets", lambda config=None, step=1: [4])
     path = tmp_path / "tiny.png"
     TINY.save(path)
     out = tmp_path / "out"

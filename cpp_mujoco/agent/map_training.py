@@ -99,8 +99,8 @@ def map_parts(config: TrainConfig, init: QNetwork | None = None) -> TrainingPart
     c = config
     init = init if init is not None else starting_network(c)
     grid_map = load_map(c.map)
-    if c.backend == "mujoco":  # heavy: MuJoCo, imported only for a run in physics
-        from cpp_mujoco.physics.envs.mixed_wind import MixedWindVectorEnv
+    if c.backend == "mujoco":
+        from cpp_mujoco.physics.envs.mixed_wind import MixedWindVectorEnv  # heavy: MuJoCo
 
         env = MixedWindVectorEnv.for_training(c, grid_map)
     else:
