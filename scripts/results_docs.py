@@ -118,8 +118,9 @@ def index_page(data: dict, families: list[tuple[str, str]]) -> str:
 # Results
 
 Every table on these pages is written by {COMMAND} from the committed result files under
-`results/` — each result names its map (and the map's digest), the policy, the backend and the
-conditions it was flown under. A test fails when a page differs from what the command writes.
+`results/` (and the grid's wind calibration, `cpp_mujoco/grid/wind_costs.json`) — each result
+names its map (and the map's digest), the policy, the backend and the conditions it was flown
+under. A test fails when a page differs from what the command writes.
 
 ## Headline: maps A, B and C against the optimum
 
@@ -193,6 +194,103 @@ def map_set_page(paths: list[Path]) -> str:
     return "\n".join(parts) + "\n"
 
 
+# ------------------------------------------------------------------ grid → MuJoCo (transfer)
+TRANSFER = "transfer_abc.json"
+TRANSFER_COMMAND = "python scripts/results_docs.py --evaluate transfer"
+
+
+def evaluate_transfer(workers: int, budget_step: int) -> None:
+    """The bundled per-map agents on A, B and C, on the grid and flown unchanged in calm MuJoCo
+    air over the same episodes; writes results/transfer_abc.json."""
+    from cpp_mujoco.agent import load_agent
+    from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
+    from cpp_mujoco.util.io import atomic_write_text, json_default
+
+    budgets = protocol_budgets(step=budget_step)
+    rows = []
+    for name in ("A", "B", "C"):
+        agent = load_agent(name)
+        for backend in ("grid", "mujoco"):
+            kwargs = {"workers": workers} if backend == "mujoco" else {}
+            result = evaluate(agent, name, backend=backend, budgets=budgets, **kwargs)
+            rows.append(result.summary())
+            print(f"{name} {backend}: {result.landing_ratio:.2%} / {result.coverage_ratio:.2%}")
+    data = {"command": f"{TRANSFER_COMMAND} --budget-step {budget_step}", "results": rows}
+    atomic_write_text(RESULTS / TRANSFER, json.dumps(data, indent=1, default=json_default))
+
+
+def transfer_page(data: dict) -> str:
+    rows = data["results"]
+    by = {(r["map"], r["backend"]): r for r in rows}
+    maps = list(dict.fromkeys(r["map"] for r in rows))
+    lines = [
+        GENERATED,
+        "# Results: grid → MuJoCo",
+        "",
+        "The bundled per-map agents, trained on the grid only, flown unchanged by the MuJoCo "
+        "quadrotor in calm air over the same episodes (how a grid action is flown: "
+        "[physics](../physics.md)).",
+        "",
+        "| map | policy | episodes | grid landing | MuJoCo landing | grid coverage "
+        "| MuJoCo coverage | J per action | no-fly violations | crashes |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for m in maps:
+        g, p = by[(m, "grid")], by[(m, "mujoco")]
+        if g["episodes"] != p["episodes"] or g["map_digest"] != p["map_digest"]:
+            raise ValueError(f"map {m}: the grid and MuJoCo results are not the same episodes")
+        lines.append(
+            f"| {m} | {p['policy']} | {p['episodes']} | {g['landing_ratio']:.2%} | "
+            f"{p['landing_ratio']:.2%} | {g['coverage_ratio']:.2%} | {p['coverage_ratio']:.2%} | "
+            f"{p['energy_per_action_j']:.0f} | {p['nfz_violations']} | {p['crashes']} |"
+        )
+    budgets = {budgets_text(r["conditions"]) for r in rows}
+    lines += [
+        "",
+        f"Every landing cell × budgets {', '.join(sorted(budgets))}; map digests "
+        + ", ".join(f"{m} `{by[(m, 'grid')]['map_digest']}`" for m in maps)
+        + f". From `results/{TRANSFER}`, flown by `{data['command']}`.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------- the grid's wind option
+WIND_COSTS = ROOT / "cpp_mujoco" / "grid" / "wind_costs.json"
+
+
+def grid_wind_page() -> str:
+    data = json.loads(WIND_COSTS.read_text(encoding="utf-8"))
+    kinds = data["kinds"]
+    lines = [
+        GENERATED,
+        "# Results: what an action costs in wind",
+        "",
+        "The grid's power-variation option (`GridConfig(wind=GridWind())`) charges each action "
+        "what MuJoCo measured for its kind at the episode's wind: the mean ± standard deviation "
+        "in budget units, and the gust term's lag-1 correlation and skewness.",
+        "",
+        "| wind m/s | " + " | ".join(kinds) + " | lag-1 corr. | skewness |",
+        "|---|" + "---|" * (len(kinds) + 2),
+    ]
+    for row in data["speeds"]:
+        calm = row["wind_speed"] == 0
+        cells = [
+            f"{row['mean'][k]:.2f}" if calm else f"{row['mean'][k]:.2f} ± {row['std'][k]:.2f}"
+            for k in kinds
+        ]
+        extra = ["–", "–"] if calm else [f"{row['lag1_correlation']:.2f}", f"{row['skewness']:.2f}"]
+        lines.append(f"| {row['wind_speed']:g} | " + " | ".join(cells + extra) + " |")
+    directions = ", ".join(f"{d:g}°" for d in data["directions"])
+    lines += [
+        "",
+        f"{data['turbulence']} turbulence, {data['repeats']} gust histories × the wind from "
+        f"{directions} per speed; one unit is {data['unit_energy_j']:.1f} J; physics digest "
+        f"`{data['physics_digest']}`. From `cpp_mujoco/grid/wind_costs.json`, flown by "
+        f"`{data['command']}`.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
 def render_all() -> dict[Path, str]:
     """Every file this script writes, path → its whole text (README with its headline)."""
     data = load("optimum_abc.json")
@@ -204,6 +302,11 @@ def render_all() -> dict[Path, str]:
     if map_sets:
         families.append(("map_sets.md", "Held-out map sets: planners and the general agent"))
         pages[PAGES / "map_sets.md"] = map_set_page(map_sets)
+    if (RESULTS / TRANSFER).is_file():
+        families.append(("transfer.md", "Grid → MuJoCo: the bundled agents flown in physics"))
+        pages[PAGES / "transfer.md"] = transfer_page(load(TRANSFER))
+    families.append(("grid_wind.md", "What an action costs in wind: the grid's wind option"))
+    pages[PAGES / "grid_wind.md"] = grid_wind_page()
     pages[PAGES / "index.md"] = index_page(data, families)
     readme = README.read_text(encoding="utf-8")
     pages[README] = replace_between(readme, *HEADLINE, headline(data), where=README)
@@ -215,7 +318,14 @@ def main(argv=None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     p.add_argument("--check", action="store_true", help="exit 1 if a page drifted; write nothing")
+    p.add_argument(
+        "--evaluate", choices=["transfer"], help="fly a family first and write its result file"
+    )
+    p.add_argument("--workers", type=int, default=2, help="MuJoCo worker processes")
+    p.add_argument("--budget-step", type=int, default=10, help="every n-th budget of 25..75")
     args = p.parse_args(argv)
+    if args.evaluate == "transfer":
+        evaluate_transfer(args.workers, args.budget_step)
     drifted = []
     for path, text in render_all().items():
         old = path.read_text(encoding="utf-8") if path.is_file() else None
