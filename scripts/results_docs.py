@@ -188,8 +188,8 @@ def map_set_page(paths: list[Path]) -> str:
         parts += [
             "",
             f"{data['backend']} backend, budgets {budgets_text(data)}, version {spec['version']} "
-            f"of the set. From `results/{path.name}`, written by `cpp-mujoco evaluate --map-set "
-            f"{spec['name']} …` ({names}).",
+            f"of the set; {names}. From `results/{path.name}`, flown by "
+            f"`{MAP_SET_COMMAND} --map-set {spec['name']}` (`cpp-mujoco evaluate --map-set`).",
         ]
     return "\n".join(parts) + "\n"
 
@@ -291,6 +291,26 @@ def grid_wind_page() -> str:
     return "\n".join(lines) + "\n"
 
 
+# ------------------------------------------------------------------------- held-out map sets
+MAP_SET_COMMAND = "python scripts/results_docs.py --evaluate map-set"
+
+
+def evaluate_map_set(name: str) -> None:
+    """``cpp-mujoco evaluate --map-set NAME`` for the planners and the general agent on the grid
+    (every map, the whole protocol); its JSON becomes results/map_set_<NAME>.json."""
+    import shutil
+    import tempfile
+
+    from cpp_mujoco.cli.main import main as cli
+
+    with tempfile.TemporaryDirectory() as out:
+        args = ["evaluate", "--map-set", name, "--planner", "safe-greedy", "beam-search"]
+        code = cli([*args, "--agent", "general", "--out", out])
+        if code:
+            raise SystemExit(code)
+        shutil.copyfile(Path(out) / f"grid_{name}.json", RESULTS / f"map_set_{name}.json")
+
+
 def render_all() -> dict[Path, str]:
     """Every file this script writes, path → its whole text (README with its headline)."""
     data = load("optimum_abc.json")
@@ -319,13 +339,17 @@ def main(argv=None) -> int:
     )
     p.add_argument("--check", action="store_true", help="exit 1 if a page drifted; write nothing")
     p.add_argument(
-        "--evaluate", choices=["transfer"], help="fly a family first and write its result file"
-    )
+        "--evaluate", choices=["transfer", "map-set"],
+        help="fly a family first and write its result file",
+    )  # fmt: skip
+    p.add_argument("--map-set", default="heldout16-v1", help="with --evaluate map-set")
     p.add_argument("--workers", type=int, default=2, help="MuJoCo worker processes")
     p.add_argument("--budget-step", type=int, default=10, help="every n-th budget of 25..75")
     args = p.parse_args(argv)
     if args.evaluate == "transfer":
         evaluate_transfer(args.workers, args.budget_step)
+    elif args.evaluate == "map-set":
+        evaluate_map_set(args.map_set)
     drifted = []
     for path, text in render_all().items():
         old = path.read_text(encoding="utf-8") if path.is_file() else None

@@ -51,3 +51,18 @@ def test_the_readme_example_runs(capsys):
     result = namespace["result"]
     assert result.landed.size > 0 and result.landing_ratio == 1.0
     assert capsys.readouterr().out.strip()
+
+
+def test_every_committed_result_names_its_map_policy_backend_and_conditions():
+    import json
+
+    from cpp_mujoco.maps import load_map
+
+    for path in sorted((ROOT / "results").glob("*.json")):
+        data = json.loads(path.read_text(encoding="utf-8"))
+        for row in data.get("results", []) + data.get("physics", []):
+            assert {"map", "map_digest", "policy", "backend", "conditions"} <= set(row), path
+            if row.get("map_bundled"):
+                assert row["map_digest"] == load_map(row["map"]).digest, (path, row["map"])
+        for row in data.get("rows", []) if isinstance(data.get("rows"), list) else []:
+            assert {"map", "map_digest", "policy"} <= set(row), path
