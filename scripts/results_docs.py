@@ -184,11 +184,10 @@ def map_set_page(paths: list[Path]) -> str:
                 f"{row['mean_landing_ratio']:.2%} | {row['mean_coverage_ratio']:.2%} | "
                 f"{row['min_landing_ratio']:.2%} |"
             )
-        names = " ".join(row["policy"] for row in data["policies"])
         parts += [
             "",
-            f"{data['backend']} backend, budgets {budgets_text(data)}, version {spec['version']} "
-            f"of the set; {names}. From `results/{path.name}`, flown by "
+            f"The {data['backend']} backend, budgets {budgets_text(data)}, version "
+            f"{spec['version']} of the set. From `results/{path.name}`, flown by "
             f"`{MAP_SET_COMMAND} --map-set {spec['name']}` (`cpp-mujoco evaluate --map-set`).",
         ]
     return "\n".join(parts) + "\n"
