@@ -133,34 +133,9 @@ def run(args) -> dict:
 
 
 def render(data: dict) -> str:
-    n = len(data["episodes"])
-    proven = data["statuses"].get("optimal", 0)
-    lines = [
-        "| policy | coverage | gap to the best missions (± standard error) |",
-        "|---|---|---|",
-        f"| best missions found ({proven} / {n} proven) | {data['best_found']:.2%} | — |",
-        f"| proven bound | {data['bound']:.2%} | — |",
-    ]
-    for name, p in data["policies"].items():
-        lines.append(
-            f"| {name} | {p['coverage']:.2%} | {p['gap_to_best'] * 100:+.2f} "
-            f"± {p['gap_standard_error'] * 100:.2f} pt |"
-        )
-    lines += [
-        "",
-        f"{data['map_set']}: {n} episodes drawn uniformly over its protocol (seed "
-        f"{data['seed']}), {solved_by(data)}, {data['time_limit_s']:g} s per episode on one core. "
-        f"Written by `python scripts/optimum_sample.py --map-set {data['map_set']} --render`.",
-    ]
-    return "\n".join(lines)
+    from cpp_mujoco.review.optimum_table import optimum_sample_table
 
-
-def solved_by(data: dict) -> str:
-    """The solver, or each solver with its share where the episodes were solved by several."""
-    solvers = data.get("solvers") or {data["solver"]: len(data["episodes"])}
-    if len(solvers) == 1:
-        return next(iter(solvers))
-    return "solved by " + " and ".join(f"{name} ({n})" for name, n in solvers.items())
+    return optimum_sample_table(data)
 
 
 def markers(name: str) -> tuple[str, str]:

@@ -10,7 +10,7 @@ from N, E, S and W with the budgets dealt round-robin to the four (``cpp_mujoco.
     python scripts/rated_wind.py --maps B --each-direction --agent runs/finetune-B/agent.pt
                                  # a saved agent instead of the bundled policies
     python scripts/rated_wind.py --gust-seed 1      # other gust histories for the same episodes
-    python scripts/rated_wind.py --ray --ray-address HEAD:6379   # on a Ray cluster (README)
+    python scripts/rated_wind.py --ray --ray-address HEAD:6379   # on a Ray cluster (docs/guide.md)
 Writes out/rated_wind/{rated_wind.md, rated_wind.json, index.html}; exits 1 if any no-fly
 violation.
 """

@@ -1,6 +1,6 @@
 """Grid → MuJoCo transfer results: the grid-vs-physics table and the per-action energy.
 
-Regenerates the README's transfer tables (the wind sweep is ``scripts/wind_sweep.py``):
+Regenerates the transfer tables (the wind sweep is ``scripts/wind_sweep.py``):
     python scripts/transfer.py                  # calm: the full protocol
     python scripts/transfer.py --budget-step 5  # quicker transfer table
 Writes out/transfer/{transfer.md, transfer.json, coverage_*.png, index.html}.

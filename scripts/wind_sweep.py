@@ -2,7 +2,7 @@
 
     python scripts/wind_sweep.py                          # A, B, C; budgets 25, 41, 57, 73, 75
     python scripts/wind_sweep.py --maps C --sweep-step 10 --speeds 0 9
-    RAY_ADDRESS=HEAD:6379 python scripts/wind_sweep.py --ray   # on a Ray cluster (README)
+    RAY_ADDRESS=HEAD:6379 python scripts/wind_sweep.py --ray   # on a Ray cluster (docs/guide.md)
 
 Per map: the paper agent, the paper agent + return guard, the wind-robust agent, the safe greedy
 planner, the safe greedy planner + guard (``review/results.py``, ``wind_variants``), each at

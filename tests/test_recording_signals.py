@@ -1,5 +1,5 @@
 """SIGTERM during `fly` finalises the recording and the video (as Ctrl-C does); a recording cut
-by SIGKILL is repaired as the README says."""
+by SIGKILL is repaired as docs/guide.md says."""
 
 import signal
 import subprocess
@@ -54,7 +54,7 @@ def test_sigterm_finalises_recording_and_video_and_exits_143(tmp_path):
     assert not video.exists() and iio.imread(partial).shape[0] > 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["chase.partial.mp4", "m.rrd"]
 
-    # SIGKILL leaves no footer; the README's repair keeps every complete message
+    # SIGKILL leaves no footer; the repair docs/guide.md gives keeps every complete message
     cut = tmp_path / "cut.rrd"
     cut.write_bytes(rrd.read_bytes()[: int(rrd.stat().st_size * 0.7)])
     assert _verify(cut).returncode != 0

@@ -1,4 +1,4 @@
-"""``cpp-mujoco benchmark``: the speed figures the README quotes, measured on this machine.
+"""``cpp-mujoco benchmark``: the speed figures, measured on this machine.
 
 One pattern for every section: a module with ``run() -> dict`` (a flat dict of numbers),
 registered in :data:`~cpp_mujoco.cli.parsers.SECTIONS` by module name and imported only when its

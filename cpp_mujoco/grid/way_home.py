@@ -29,9 +29,9 @@ OPPOSITE = np.array([2, 3, 0, 1])  # the heading that undoes each move
 
 @dataclass(frozen=True)
 class ReturnMargin:
-    """How much beyond the expected way home is kept (defaults measured: README "Flying in
-    wind"): standard deviations of the way's spread and units beyond it and the landing unit,
-    in calm air and from ``gusty_wind`` m/s of wind up (linear between).
+    """How much beyond the expected way home is kept (defaults measured: docs/physics.md, "The
+    return guard"): standard deviations of the way's spread and units beyond it and the landing
+    unit, in calm air and from ``gusty_wind`` m/s of wind up (linear between).
 
     Measured with the return guard: 3σ + 0.1 everywhere left 3 crashes in 616 rated-wind
     episodes (single upwind moves in a long Dryden gust cost up to 4.9 units, a tail no Gaussian

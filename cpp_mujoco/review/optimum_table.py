@@ -41,3 +41,128 @@ def optimum_summary(grid_map: GridMap, entries: list[dict], path: Path | None) -
         f"limit {', '.join(f'{t:g}' for t in f['time_limits_s'])} s)"
         + (f"; cache {path}" if path else "")
     )
+
+
+# ----------------------------------------------------- committed results rendered for the docs
+def replace_between(text: str, begin: str, end: str, body: str, where: object = "text") -> str:
+    """``text`` with what lies between the markers ``begin`` and ``end`` replaced by ``body``."""
+    if begin not in text or end not in text:
+        raise ValueError(f"{where} lacks the markers {begin} … {end}")
+    before, rest = text.split(begin, 1)
+    _, after = rest.split(end, 1)
+    return f"{before}{begin}\n{body}\n{end}{after}"
+
+
+def policy_column(policy: str) -> str:
+    """A result's policy as a column name: a per-map agent (``ddqn-A``) is ``ddqn``."""
+    return "ddqn" if policy.startswith("ddqn") else policy
+
+
+def optimum_abc_table(data: dict) -> str:
+    """The policies against the best missions on maps A, B and C (``results/optimum_abc.json``):
+    per map the best missions (proven share, bound), per policy its coverage and its gap to the
+    best missions; then each map's cache in a line and the best missions flown in MuJoCo."""
+    by_map: dict[str, list[dict]] = {}
+    for row in data["results"]:
+        by_map.setdefault(row["map"], []).append(row)
+    names = list(dict.fromkeys(policy_column(r["policy"]) for r in data["results"]))
+    head = ["map", "episodes", "proven optimal", "optimal", "bound"]
+    head += [f"{n} (gap)" for n in names]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for name, rows in by_map.items():
+        o = rows[0]["optimum"]
+        proven = o["statuses"].get("optimal", 0)
+        cells = [
+            name, str(rows[0]["episodes"]), f"{proven} / {o['episodes_known']}",
+            f"{o['coverage_ratio']:.2%}", f"{o['bound_ratio']:.2%}",
+        ]  # fmt: skip
+        for row in rows:
+            gap = row["optimum"]["gap_to_optimal"] * 100
+            cells.append(f"{row['coverage_ratio']:.2%} ({-gap:+.2f})")
+        lines.append("| " + " | ".join(cells) + " |")
+    policy_names = ", ".join(r["policy"] for r in data["results"][: len(names)])
+    lines.append("")
+    lines.append(
+        f"Grid, full protocol per map ({policy_names}); gap = the policy's coverage minus the "
+        "best missions', in points, over the same episodes. Written by "
+        "`python scripts/optimum_report.py` from `results/optimum_abc.json`."
+    )
+    lines.append("")
+    lines.extend(proven_share(name) for name in by_map)
+    if data.get("physics"):
+        lines.append("")
+    for row in data.get("physics", []):
+        o = row["optimum"]
+        budgets = row["conditions"]["budgets"]
+        lines.append(
+            f"- map {row['map']}, the best missions flown in MuJoCo (calm, budgets "
+            f"{budgets['min']}..{budgets['max']} every {budgets['step']}, {row['episodes']} "
+            f"episodes): landing {row['landing_ratio']:.2%}, coverage {row['coverage_ratio']:.2%} "
+            f"(the grid's best missions {o['coverage_ratio']:.2%}), "
+            f"{row['energy_per_action_j']:.0f} J per action, {row['nfz_violations']} no-fly "
+            "violations."
+        )
+    return "\n".join(lines)
+
+
+def proven_share(name: str) -> str:
+    """One map's cache in a line: how many episodes each solver proved at which time limit, how
+    many are open and how far, the median and the slowest solve (read from the committed cache,
+    so the line is the file's)."""
+    from cpp_mujoco.maps import load_map
+    from cpp_mujoco.protocol.optimum import default_folder
+    from cpp_mujoco.protocol.optimum_cache import OptimumCache
+
+    entries = OptimumCache(default_folder(), load_map(name)).entries
+    proven: dict[str, int] = {}
+    for e in entries.values():
+        if e["status"] == "optimal":
+            by = f"{e['solver']} ({e['time_limit_s']:g} s limit)"
+            proven[by] = proven.get(by, 0) + 1
+    open_gaps = [e["bound"] - e["seen"] for e in entries.values() if e["status"] != "optimal"]
+    times = np.array([e["time_s"] for e in entries.values()])
+    slowest = max((e["time_s"], k) for k, e in entries.items() if e["status"] == "optimal")
+    row, col, budget = slowest[1].split(",")
+    text = f"- map {name}, {len(entries)} episodes: proven " + ", ".join(
+        f"{n} by {by}" for by, n in sorted(proven.items(), key=lambda kv: -kv[1])
+    )
+    if open_gaps:
+        text += (f"; not proven {len(open_gaps)} (the best mission {min(open_gaps)}–"
+                 f"{max(open_gaps)} targets under the bound)")  # fmt: skip
+    return text + (
+        f"; solve time median {np.median(times):.1f} s, slowest proven {slowest[0]:.1f} s "
+        f"(start ({row}, {col}), {budget} units)."
+    )
+
+
+def optimum_sample_table(data: dict) -> str:
+    """The policies against the best missions on a sample of a map set's episodes
+    (``results/optimum_<set>.json``, written by ``scripts/optimum_sample.py``)."""
+    n = len(data["episodes"])
+    proven = data["statuses"].get("optimal", 0)
+    lines = [
+        "| policy | coverage | gap to the best missions (± standard error) |",
+        "|---|---|---|",
+        f"| best missions found ({proven} / {n} proven) | {data['best_found']:.2%} | — |",
+        f"| proven bound | {data['bound']:.2%} | — |",
+    ]
+    for name, p in data["policies"].items():
+        lines.append(
+            f"| {name} | {p['coverage']:.2%} | {p['gap_to_best'] * 100:+.2f} "
+            f"± {p['gap_standard_error'] * 100:.2f} pt |"
+        )
+    lines += [
+        "",
+        f"{data['map_set']}: {n} episodes drawn uniformly over its protocol (seed "
+        f"{data['seed']}), {solved_by(data)}, {data['time_limit_s']:g} s per episode on one core. "
+        f"Written by `python scripts/optimum_sample.py --map-set {data['map_set']} --render`.",
+    ]
+    return "\n".join(lines)
+
+
+def solved_by(data: dict) -> str:
+    """The solver, or each solver with its share where the episodes were solved by several."""
+    solvers = data.get("solvers") or {data["solver"]: len(data["episodes"])}
+    if len(solvers) == 1:
+        return next(iter(solvers))
+    return "solved by " + " and ".join(f"{name} ({n})" for name, n in solvers.items())

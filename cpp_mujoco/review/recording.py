@@ -13,7 +13,7 @@ come, else from their first values).
 The file is written as the mission goes, in chunks of a few seconds of wall time (one chunk per
 entity per flush: flushing every step made a mission ~1,000 tiny chunks). Closing it — also on
 Ctrl-C or SIGTERM (:mod:`cpp_mujoco.util.signals`) — writes the footer ``rerun rrd verify`` wants; a
-recording cut by SIGKILL keeps what was flushed and can be repaired (see the README). A mission
+recording cut by SIGKILL keeps what was flushed and can be repaired (see docs/guide.md). A mission
 closed normally is then compacted (``rerun rrd optimize``, atomically), so its chunk count no
 longer grows with the wall time the flight took and ``rerun rrd stats`` finds nothing to merge.
 Each recording has its own random recording id, so two opened together stay two recordings.

@@ -1,0 +1,372 @@
+"""The results pages and the README's headline table, written from committed result files only.
+
+    python scripts/results_docs.py           # rewrite docs/results/*.md and README's headline
+    python scripts/results_docs.py --check   # exit 1 if a committed page differs from the files
+
+Reads the JSON under results/ (each result names its map and the map's digest, the policy, the
+backend and the conditions it was flown under) and writes:
+
+- README.md, between ``<!-- results:headline:start -->`` and ``<!-- results:headline:end -->``,
+  and docs/results/index.md: the headline table, every bundled policy against the best missions
+  on maps A, B and C (results/optimum_abc.json);
+- docs/results/optimum.md: the exact planner's table of A, B and C (the one docs/optimum.md
+  holds, from the same code) and the sampled held-out sets (results/optimum_<set>.json);
+- docs/results/map_sets.md: the planners and the general agent over a held-out map set's whole
+  protocol (results/map_set_<set>.json, from ``cpp-mujoco evaluate --map-set``), when committed.
+
+Nothing else is read, so running it twice changes nothing, and tests/test_results_docs.py fails
+when a committed page is not what this script writes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "results"
+PAGES = ROOT / "docs" / "results"
+README = ROOT / "README.md"
+HEADLINE = ("<!-- results:headline:start -->", "<!-- results:headline:end -->")
+COMMAND = "`python scripts/results_docs.py`"
+GENERATED = f"<!-- Written by {COMMAND[1:-1]} from results/; do not edit. -->"
+
+# the headline's rows, best first: (the policy as results name it, what the row says)
+HEADLINE_ROWS = (
+    ("ddqn", 'bundled per-map agent (`load_agent("A")` …)'),
+    ("general", 'general agent (`load_agent("general")`)'),
+    ("beam-search", "beam search planner"),
+    ("safe-greedy", "safe greedy planner"),
+)
+
+
+def load(name: str) -> dict:
+    return json.loads((RESULTS / name).read_text(encoding="utf-8"))
+
+
+def policy_key(policy: str) -> str:
+    from cpp_mujoco.review.optimum_table import policy_column
+
+    return policy_column(policy)
+
+
+def budgets_text(conditions: dict) -> str:
+    b = conditions["budgets"]
+    every = "" if b["step"] == 1 else f" every {b['step']}"
+    return f"{b['min']}..{b['max']}{every}"
+
+
+def shared(rows: list[dict], key: str) -> object:
+    """The one value every row has for ``key`` (conditions the table states once)."""
+    values = {json.dumps(r[key], sort_keys=True) for r in rows}
+    if len(values) != 1:
+        raise ValueError(f"the results differ in {key}: {sorted(values)}")
+    return rows[0][key]
+
+
+# ------------------------------------------------------------------------------ the headline
+def headline(data: dict) -> str:
+    """Each bundled policy's landing and coverage on A, B and C beside the best missions."""
+    rows = data["results"]
+    maps = list(dict.fromkeys(r["map"] for r in rows))
+    backend = shared(rows, "backend")
+    budgets = {budgets_text(r["conditions"]) for r in rows}
+    if len(budgets) != 1:
+        raise ValueError(f"the headline's results were flown on different budgets: {budgets}")
+    cell = {(r["map"], policy_key(r["policy"])): r for r in rows}
+    first = {m: next(r for r in rows if r["map"] == m) for m in maps}
+    lines = [
+        "| policy | " + " | ".join(f"map {m}" for m in maps) + " |",
+        "|---|" + "---|" * len(maps),
+    ]
+    best = []
+    for m in maps:
+        o = first[m]["optimum"]
+        proven = o["statuses"].get("optimal", 0)
+        best.append(
+            f"{o['coverage_ratio']:.2%} (bound {o['bound_ratio']:.2%}; "
+            f"{proven} / {o['episodes_known']} proven)"
+        )
+    lines.append("| **best missions** (exact planner) | " + " | ".join(best) + " |")
+    for key, label in HEADLINE_ROWS:
+        cells = []
+        for m in maps:
+            r = cell[(m, key)]
+            gap = -r["optimum"]["gap_to_optimal"] * 100
+            cells.append(f"{r['landing_ratio']:.2%} / **{r['coverage_ratio']:.2%}** ({gap:+.2f})")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    episodes = ", ".join(f"{m} {first[m]['episodes']}" for m in maps)
+    digests = ", ".join(f"{m} `{first[m]['map_digest']}`" for m in maps)
+    lines += [
+        "",
+        f"Landing / **coverage** (gap to the best missions over the same episodes, in points); "
+        f"best missions: their mean coverage, the solver's proven bound, and how many episodes "
+        f"are proven optimal. The paper's protocol on the {backend} backend: every landing cell "
+        f"× budgets {budgets.pop()}, the agents acting greedily ({episodes} episodes; "
+        f"map digests {digests}). "
+        f"From `results/optimum_abc.json`; written by {COMMAND}.",
+    ]
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------ the pages
+def index_page(data: dict, families: list[tuple[str, str]]) -> str:
+    links = "\n".join(f"- [{title}]({name})" for name, title in families)
+    return f"""{GENERATED}
+# Results
+
+Every table on these pages is written by {COMMAND} from the committed result files under
+`results/` (and the grid's wind calibration, `cpp_mujoco/grid/wind_costs.json`) — each result
+names its map (and the map's digest), the policy, the backend and the conditions it was flown
+under. A test fails when a page differs from what the command writes.
+
+## Headline: maps A, B and C against the optimum
+
+{headline(data)}
+
+## More
+
+{links}
+"""
+
+
+def optimum_page() -> str:
+    from cpp_mujoco.review.optimum_table import optimum_abc_table, optimum_sample_table
+
+    parts = [
+        GENERATED,
+        "# Results: the optimum",
+        "",
+        'What the exact planner (`make_planner("optimal")`, [the model](../optimum.md)) found '
+        "for every episode of the paper's protocol on maps A, B and C, and every bundled policy "
+        "beside it:",
+        "",
+        optimum_abc_table(load("optimum_abc.json")),
+    ]
+    for path in sorted(RESULTS.glob("optimum_*.json")):
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if "map_set" not in data:
+            continue
+        parts += [
+            "",
+            f"## {data['map_set']}: a sample of its episodes",
+            "",
+            optimum_sample_table(data),
+        ]
+    return "\n".join(parts) + "\n"
+
+
+def map_set_page(paths: list[Path]) -> str:
+    parts = [
+        GENERATED,
+        "# Results: held-out map sets",
+        "",
+        "The paper's protocol (every landing cell × every budget of the map's size class) on every "
+        "map of a held-out set, on the grid; landing and coverage are means over the maps (each "
+        "map weighs the same), the worst map's landing beside them.",
+    ]
+    for path in paths:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        spec = data["map_set"]
+        parts += [
+            "",
+            f"## {spec['name']} ({spec['evaluated']} of its {spec['count']} maps, "
+            f"{spec['size']}×{spec['size']})",
+            "",
+            "| policy | maps | episodes | landing | coverage | worst map's landing |",
+            "|---|---|---|---|---|---|",
+        ]
+        for row in data["policies"]:
+            parts.append(
+                f"| {row['policy']} | {row['maps']} | {row['episodes']} | "
+                f"{row['mean_landing_ratio']:.2%} | {row['mean_coverage_ratio']:.2%} | "
+                f"{row['min_landing_ratio']:.2%} |"
+            )
+        parts += [
+            "",
+            f"The {data['backend']} backend, budgets {budgets_text(data)}, version "
+            f"{spec['version']} of the set. From `results/{path.name}`, flown by "
+            f"`{MAP_SET_COMMAND} --map-set {spec['name']}` (`cpp-mujoco evaluate --map-set`).",
+        ]
+    return "\n".join(parts) + "\n"
+
+
+# ------------------------------------------------------------------ grid → MuJoCo (transfer)
+TRANSFER = "transfer_abc.json"
+TRANSFER_COMMAND = "python scripts/results_docs.py --evaluate transfer"
+
+
+def evaluate_transfer(workers: int, budget_step: int) -> None:
+    """The bundled per-map agents on A, B and C, on the grid and flown unchanged in calm MuJoCo
+    air over the same episodes; writes results/transfer_abc.json."""
+    from cpp_mujoco.agent import load_agent
+    from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
+    from cpp_mujoco.util.io import atomic_write_text, json_default
+
+    budgets = protocol_budgets(step=budget_step)
+    rows = []
+    for name in ("A", "B", "C"):
+        agent = load_agent(name)
+        for backend in ("grid", "mujoco"):
+            kwargs = {"workers": workers} if backend == "mujoco" else {}
+            result = evaluate(agent, name, backend=backend, budgets=budgets, **kwargs)
+            rows.append(result.summary())
+            print(f"{name} {backend}: {result.landing_ratio:.2%} / {result.coverage_ratio:.2%}")
+    data = {"command": f"{TRANSFER_COMMAND} --budget-step {budget_step}", "results": rows}
+    atomic_write_text(RESULTS / TRANSFER, json.dumps(data, indent=1, default=json_default))
+
+
+def transfer_page(data: dict) -> str:
+    rows = data["results"]
+    by = {(r["map"], r["backend"]): r for r in rows}
+    maps = list(dict.fromkeys(r["map"] for r in rows))
+    lines = [
+        GENERATED,
+        "# Results: grid → MuJoCo",
+        "",
+        "The bundled per-map agents, trained on the grid only, flown unchanged by the MuJoCo "
+        "quadrotor in calm air over the same episodes (how a grid action is flown: "
+        "[physics](../physics.md)).",
+        "",
+        "| map | policy | episodes | grid landing | MuJoCo landing | grid coverage "
+        "| MuJoCo coverage | J per action | no-fly violations | crashes |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for m in maps:
+        g, p = by[(m, "grid")], by[(m, "mujoco")]
+        if g["episodes"] != p["episodes"] or g["map_digest"] != p["map_digest"]:
+            raise ValueError(f"map {m}: the grid and MuJoCo results are not the same episodes")
+        lines.append(
+            f"| {m} | {p['policy']} | {p['episodes']} | {g['landing_ratio']:.2%} | "
+            f"{p['landing_ratio']:.2%} | {g['coverage_ratio']:.2%} | {p['coverage_ratio']:.2%} | "
+            f"{p['energy_per_action_j']:.0f} | {p['nfz_violations']} | {p['crashes']} |"
+        )
+    budgets = {budgets_text(r["conditions"]) for r in rows}
+    lines += [
+        "",
+        f"Every landing cell × budgets {', '.join(sorted(budgets))}; map digests "
+        + ", ".join(f"{m} `{by[(m, 'grid')]['map_digest']}`" for m in maps)
+        + f". From `results/{TRANSFER}`, flown by `{data['command']}`.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------- the grid's wind option
+WIND_COSTS = ROOT / "cpp_mujoco" / "grid" / "wind_costs.json"
+
+
+def grid_wind_page() -> str:
+    data = json.loads(WIND_COSTS.read_text(encoding="utf-8"))
+    kinds = data["kinds"]
+    lines = [
+        GENERATED,
+        "# Results: what an action costs in wind",
+        "",
+        "The grid's power-variation option (`GridConfig(wind=GridWind())`) charges each action "
+        "what MuJoCo measured for its kind at the episode's wind: the mean ± standard deviation "
+        "in budget units, and the gust term's lag-1 correlation and skewness.",
+        "",
+        "| wind m/s | " + " | ".join(kinds) + " | lag-1 corr. | skewness |",
+        "|---|" + "---|" * (len(kinds) + 2),
+    ]
+    for row in data["speeds"]:
+        calm = row["wind_speed"] == 0
+        cells = [
+            f"{row['mean'][k]:.2f}" if calm else f"{row['mean'][k]:.2f} ± {row['std'][k]:.2f}"
+            for k in kinds
+        ]
+        extra = ["–", "–"] if calm else [f"{row['lag1_correlation']:.2f}", f"{row['skewness']:.2f}"]
+        lines.append(f"| {row['wind_speed']:g} | " + " | ".join(cells + extra) + " |")
+    directions = ", ".join(f"{d:g}°" for d in data["directions"])
+    lines += [
+        "",
+        f"{data['turbulence']} turbulence, {data['repeats']} gust histories × the wind from "
+        f"{directions} per speed; one unit is {data['unit_energy_j']:.1f} J; physics digest "
+        f"`{data['physics_digest']}`. From `cpp_mujoco/grid/wind_costs.json`, flown by "
+        f"`{data['command']}`.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------- held-out map sets
+MAP_SET_COMMAND = "python scripts/results_docs.py --evaluate map-set"
+
+
+def evaluate_map_set(name: str) -> None:
+    """``cpp-mujoco evaluate --map-set NAME`` for the planners and the general agent on the grid
+    (every map, the whole protocol); its JSON becomes results/map_set_<NAME>.json."""
+    import shutil
+    import tempfile
+
+    from cpp_mujoco.cli.main import main as cli
+
+    with tempfile.TemporaryDirectory() as out:
+        args = ["evaluate", "--map-set", name, "--planner", "safe-greedy", "beam-search"]
+        code = cli([*args, "--agent", "general", "--out", out])
+        if code:
+            raise SystemExit(code)
+        shutil.copyfile(Path(out) / f"grid_{name}.json", RESULTS / f"map_set_{name}.json")
+
+
+def render_all() -> dict[Path, str]:
+    """Every file this script writes, path → its whole text (README with its headline)."""
+    data = load("optimum_abc.json")
+    from cpp_mujoco.review.optimum_table import replace_between
+
+    families = [("optimum.md", "The optimum: every episode's best mission, and the policies")]
+    pages = {PAGES / "optimum.md": optimum_page()}
+    map_sets = sorted(RESULTS.glob("map_set_*.json"))
+    if map_sets:
+        families.append(("map_sets.md", "Held-out map sets: planners and the general agent"))
+        pages[PAGES / "map_sets.md"] = map_set_page(map_sets)
+    if (RESULTS / TRANSFER).is_file():
+        families.append(("transfer.md", "Grid → MuJoCo: the bundled agents flown in physics"))
+        pages[PAGES / "transfer.md"] = transfer_page(load(TRANSFER))
+    families.append(("grid_wind.md", "What an action costs in wind: the grid's wind option"))
+    pages[PAGES / "grid_wind.md"] = grid_wind_page()
+    pages[PAGES / "index.md"] = index_page(data, families)
+    readme = README.read_text(encoding="utf-8")
+    pages[README] = replace_between(readme, *HEADLINE, headline(data), where=README)
+    return pages
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument("--check", action="store_true", help="exit 1 if a page drifted; write nothing")
+    p.add_argument(
+        "--evaluate", choices=["transfer", "map-set"],
+        help="fly a family first and write its result file",
+    )  # fmt: skip
+    p.add_argument("--map-set", default="heldout16-v1", help="with --evaluate map-set")
+    p.add_argument("--workers", type=int, default=2, help="MuJoCo worker processes")
+    p.add_argument("--budget-step", type=int, default=10, help="every n-th budget of 25..75")
+    args = p.parse_args(argv)
+    if args.evaluate == "transfer":
+        evaluate_transfer(args.workers, args.budget_step)
+    elif args.evaluate == "map-set":
+        evaluate_map_set(args.map_set)
+    drifted = []
+    for path, text in render_all().items():
+        old = path.read_text(encoding="utf-8") if path.is_file() else None
+        if old == text:
+            continue
+        drifted.append(path.relative_to(ROOT))
+        if not args.check:
+            from cpp_mujoco.util.io import atomic_write_text
+
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(path, text)
+    if args.check and drifted:
+        print("not what scripts/results_docs.py writes: " + ", ".join(map(str, drifted)))
+        return 1
+    for path in drifted:
+        print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
