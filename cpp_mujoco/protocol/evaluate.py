@@ -82,11 +82,9 @@ class EvaluationResult:
     conditions: dict[str, Any] = field(default_factory=dict)
 
     def __repr__(self) -> str:  # the per-episode arrays would bury the figures
-        return (
-            f"EvaluationResult(map {self.map_name} ({self.grid_map.digest}), policy "
-            f"{self.policy_name!r}, {self.backend}, {self.landed.size} episodes: landing "
-            f"{self.landing_ratio:.2%}, coverage {self.coverage_ratio:.2%})"
-        )
+        who = f"map {self.map_name} ({self.grid_map.digest}), policy {self.policy_name!r}"
+        ratios = f"landing {self.landing_ratio:.2%}, coverage {self.coverage_ratio:.2%}"
+        return f"EvaluationResult({who}, {self.backend}, {self.landed.size} episodes: {ratios})"
 
     @property
     def map_name(self) -> str:
