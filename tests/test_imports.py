@@ -12,13 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # the reasons a function-level import may give, as its line's comment begins
 REASONS = ("# optional:", "# heavy:", "# GL:")
 # uncommented function-level imports in the trainer's modules; a count may only fall
-UNCOMMENTED = {
-    "cpp_mujoco/agent/checkpoint.py": 1,
-    "cpp_mujoco/agent/config.py": 1,
-    "cpp_mujoco/agent/train.py": 1,
-    "cpp_mujoco/cli/train.py": 4,
-    "cpp_mujoco/cli/train_general.py": 4,
-}
+UNCOMMENTED: dict[str, int] = {}  # files allowed function-level imports without a reason
 
 
 def _function_level_imports(path: Path) -> list[ast.Import | ast.ImportFrom]:

@@ -12,6 +12,8 @@ import math
 from dataclasses import asdict, dataclass, fields
 from typing import ClassVar
 
+import torch
+
 from cpp_mujoco.grid.mdp import GridConfig, Rewards
 from cpp_mujoco.grid.spaces import MAX_WIND
 from cpp_mujoco.grid.way_home import ReturnMargin
@@ -307,8 +309,6 @@ class TrainConfig:
 
 def _check_device(device: str) -> None:
     """A torch device this machine has, checked before a run folder is touched."""
-    import torch
-
     try:
         kind = torch.device(device).type
     except (RuntimeError, TypeError):

@@ -14,13 +14,17 @@ import argparse
 import dataclasses
 import sys
 
+from cpp_mujoco.agent.checkpoint import CheckpointError
 from cpp_mujoco.agent.config import TrainConfig
+from cpp_mujoco.agent.run_folder import TrainingInterrupted
+from cpp_mujoco.agent.training_run import train
 from cpp_mujoco.cli.settings_options import (
     add_settings_options,
     build_config,
     given_settings,
 )
 from cpp_mujoco.cli.settings_options import resume_command as settings_resume_command
+from cpp_mujoco.maps import MapError
 
 # one sentence per TrainConfig field (tests/test_agent_train.py checks that none is missing)
 _HELP = {
@@ -161,12 +165,6 @@ def run_train(args: argparse.Namespace) -> int:
 def run_training(args: argparse.Namespace, command: str, make_config, resume: str) -> int:
     """Train the run the command line describes (``make_config(args)``), one per-map or general;
     ``resume``: the command line that continues it after a signal."""
-    # heavy: torch, kept off --help
-    from cpp_mujoco.agent.checkpoint import CheckpointError
-    from cpp_mujoco.agent.run_folder import TrainingInterrupted
-    from cpp_mujoco.agent.training_run import train
-    from cpp_mujoco.maps import MapError
-
     progress = not args.no_progress and sys.stderr.isatty()
     try:
         config = make_config(args)

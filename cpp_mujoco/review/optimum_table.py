@@ -7,7 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from cpp_mujoco.maps import GridMap
+from cpp_mujoco.maps import GridMap, load_map
+from cpp_mujoco.protocol.optimum import default_folder
+from cpp_mujoco.protocol.optimum_cache import OptimumCache
 
 
 def optimum_figures(grid_map: GridMap, entries: list[dict]) -> dict:
@@ -109,10 +111,6 @@ def proven_share(name: str) -> str:
     """One map's cache in a line: how many episodes each solver proved at which time limit, how
     many are open and how far, the median and the slowest solve (read from the committed cache,
     so the line is the file's)."""
-    from cpp_mujoco.maps import load_map
-    from cpp_mujoco.protocol.optimum import default_folder
-    from cpp_mujoco.protocol.optimum_cache import OptimumCache
-
     entries = OptimumCache(default_folder(), load_map(name)).entries
     proven: dict[str, int] = {}
     for e in entries.values():
