@@ -1,6 +1,6 @@
 """The paper-style results: bundled DDQN agents vs the reference planners on maps A, B, C.
 
-    python scripts/results.py [--maps A B C] [--out out/results]
+    python scripts/results.py [--maps A B C] [--out out/results] [--budget-step N]
 
 Full protocol on the grid (every landing cell × every budget 25..75, greedy). Writes, per map, the
 coverage-per-budget figure against the planners and the upper bound (the paper's Fig. 3), example
@@ -47,10 +47,18 @@ def main(argv=None) -> int:
     )
     p.add_argument("--maps", nargs="+", default=["A", "B", "C"], help="bundled maps")
     p.add_argument("--out", default="out/results", help="folder for figures, JSON, results.txt")
+    p.add_argument(
+        "--budget-step", type=int, default=1,
+        help="every n-th budget, the largest always included (default: 1, the full protocol)",
+    )  # fmt: skip
     args = p.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    results = run_evaluation(args.maps, policies, out, progress=sys.stderr.isatty())
+    if args.budget_step < 1:
+        p.error(f"--budget-step must be >= 1, got {args.budget_step}")
+    results = run_evaluation(
+        args.maps, policies, out, progress=sys.stderr.isatty(), budget_step=args.budget_step
+    )
     table = Table("the bundled agents against the paper and the planners", PAPER_COLUMNS)
     for per_map in results.values():
         by = {r.policy_name: r for r in per_map}
