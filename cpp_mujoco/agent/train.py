@@ -45,12 +45,13 @@ from cpp_mujoco.agent.training_plot import write_training_log
 from cpp_mujoco.agent.training_state import TrainingState
 
 
-def build_parts(config: TrainConfig) -> TrainingParts:
+def build_parts(config: TrainConfig, init=None) -> TrainingParts:
     """A run's parts by its config: the general agent's for a :class:`GeneralTrainConfig`, a
-    per-map run's otherwise (each loads its starting weights, ``init_from``)."""
+    per-map run's otherwise; ``init``: the starting weights if already loaded (else each loads
+    its own, ``init_from``)."""
     if isinstance(config, GeneralTrainConfig):
-        return general_parts(config)
-    return map_parts(config)
+        return general_parts(config, init)
+    return map_parts(config, init)
 
 
 class Trainer:

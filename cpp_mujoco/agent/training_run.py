@@ -16,14 +16,15 @@ from cpp_mujoco.util.io import atomic_write_text
 from cpp_mujoco.util.settings import to_toml
 
 
-def check_start(config: TrainConfig) -> None:
-    """What can fail before a folder is claimed: the starting weights (``init_from``) and, for a
-    general run, its named maps (``CheckpointError``, ``MapError``, ``ValueError``)."""
+def starting_weights(config: TrainConfig):
+    """The starting weights ``init_from`` names, loaded and checked against the run (None without
+    one); a general run's named maps are checked too. What can fail before a folder is claimed
+    (``CheckpointError``, ``MapError``, ``ValueError``)."""
     if isinstance(config, GeneralTrainConfig):
-        initial_general_weights(config)
+        weights = initial_general_weights(config)
         training_pool(config, per_size=1)
-    else:
-        starting_network(config)
+        return weights
+    return starting_network(config)
 
 
 def train(
@@ -41,9 +42,9 @@ def train(
     A non-empty ``out_dir`` needs ``resume`` (continue its checkpoint) or ``overwrite`` (replace
     the run): :class:`~cpp_mujoco.agent.run_folder.RunFolderError` otherwise, before any write.
     """
-    check_start(config)
+    init = starting_weights(config)  # a bad file or map fails before the folder is claimed
     with claim_run_folder(out_dir, resume=resume, overwrite=overwrite) as out:
-        trainer = Trainer(config, out, build_parts(config))
+        trainer = Trainer(config, out, build_parts(config, init))
         if resume and trainer.resume():
             print(f"resuming {out / 'checkpoint.pt'} at update {trainer.updates}")
         elif resume:

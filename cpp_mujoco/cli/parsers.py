@@ -57,6 +57,10 @@ def add_generate_options(p) -> None:
     )  # fmt: skip
 
 
+def add_maps_option(p) -> None:
+    p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
+
+
 def add_map_set_options(p) -> None:
     p.add_argument(
         "--map-set", metavar="NAME",
@@ -80,9 +84,7 @@ def add_maps(sub) -> None:
         dest="maps_command", metavar="{draw,generate}", help="draw (the default) or generate"
     )
     draw = kinds.add_parser("draw", help="draw maps as the paper's colour figure, list cell counts")
-    draw.add_argument(
-        "--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)"
-    )
+    add_maps_option(draw)
     add_cell_pixels_option(draw)
     draw.add_argument("--out", help="folder for the figures (default: out/maps)")
     draw.set_defaults(func="cpp_mujoco.cli.maps:cmd_draw")
@@ -93,7 +95,7 @@ def add_maps(sub) -> None:
 
 def add_evaluate(sub) -> None:
     p = sub.add_parser("evaluate", help="run the paper's protocol for planners and agents")
-    p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
+    add_maps_option(p)
     add_cell_pixels_option(p)
 
     add_map_set_options(p)
@@ -173,7 +175,7 @@ def add_optimum(sub) -> None:
     p = sub.add_parser(
         "optimum", help="solve the protocol's best missions (exact planner) into the cache"
     )
-    p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
+    add_maps_option(p)
     p.add_argument(
         "--budget-step", type=int_at_least(1), default=1,
         help="every n-th budget of each map's size class (16x16: 25..75), the largest always "
@@ -191,7 +193,7 @@ def add_demo(sub) -> None:
     p = sub.add_parser(
         "demo", help="the README's main job: agents on the grid and in MuJoCo, recordings, videos"
     )
-    p.add_argument("--map", nargs="+", help="bundled map names or PNG paths (default: all bundled)")
+    add_maps_option(p)
     p.add_argument("--out", default="out/demo", help="folder for results (default: %(default)s)")
     p.add_argument(
         "--budget-step", type=int_at_least(1), default=10,
