@@ -6,6 +6,10 @@ limit may improve a mission that was not proven, and starts from it). The file n
 digest and field of view; a file of another map, another format or a broken one is refused with
 a clear error and never overwritten. Writes go through :func:`cpp_mujoco.util.io.atomic_write_text`,
 so an interrupted solve keeps every entry saved before it and resumes from there.
+
+The entries of one start are consistent across budgets before they are written
+(:func:`tighten_by_budget`): a mission of a smaller budget also flies with a larger one (it lands
+sooner), and a bound of a larger budget also holds for a smaller one.
 """
 
 from __future__ import annotations
@@ -125,6 +129,7 @@ class OptimumCache:
                     bound = min(theirs["bound"], mine["bound"])
                     status = "optimal" if better["seen"] >= bound else better["status"]
                     self.entries[key] = {**better, "bound": bound, "status": status}
+        tighten_by_budget(self.entries)
         data = {
             "format": FORMAT,
             "map": self.label,
@@ -138,6 +143,60 @@ class OptimumCache:
             raise ValueError("an in-memory optimum cache has no file to save to")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(self.path, json.dumps(data, indent=1))
+
+
+def tighten_by_budget(entries: dict[str, dict[str, Any]]) -> int:
+    """Make each start's entries monotone in the budget, in place; the number of entries changed.
+
+    Every mission of budget b' < b is a mission of budget b (it lands after at most b' actions),
+    so an entry takes the best mission of any smaller budget; every mission of budget b is one of
+    any larger budget, so an entry takes the lowest bound of any larger budget. An entry changed so
+    says where from (``tightened_from``: the budgets whose mission and bound it holds), and is
+    optimal once its mission meets its bound."""
+    by_start: dict[tuple[int, int], list[int]] = {}
+    for key in entries:
+        r, c, b = _order(key)
+        by_start.setdefault((r, c), []).append(b)
+    changed = 0
+    for (r, c), budgets in by_start.items():
+        budgets.sort()
+        lowest: list[tuple[int, int]] = []  # (bound, its budget) from the largest budget down
+        for b in reversed(budgets):
+            e = entries[episode_key((r, c), b)]
+            if e["status"] != "infeasible" and (not lowest or e["bound"] < lowest[-1][0]):
+                lowest.append((e["bound"], b))
+            else:
+                lowest.append(lowest[-1] if lowest else (e["bound"], b))
+        lowest.reverse()
+        best: tuple[int, int] | None = None  # (seen, its budget) from the smallest budget up
+        for b, (bound, bound_budget) in zip(budgets, lowest, strict=True):
+            key = episode_key((r, c), b)
+            e = entries[key]
+            if e["status"] == "infeasible":
+                continue
+            if best is None or e["seen"] >= best[0]:
+                best = (e["seen"], b)
+            mission_budget = best[1]
+            if mission_budget == b and (bound_budget == b or bound >= e["bound"]):
+                continue
+            source = entries[episode_key((r, c), mission_budget)]
+            seen, bound = source["seen"], min(bound, e["bound"])
+            if seen > bound:
+                raise CacheError(
+                    f"the optimum cache contradicts itself at start ({r}, {c}): budget "
+                    f"{mission_budget}'s mission sees {seen} targets, budget {bound_budget}'s "
+                    f"bound is {bound}"
+                )
+            entries[key] = {
+                **e,
+                "seen": int(seen),
+                "bound": int(bound),
+                "status": "optimal" if seen >= bound else "feasible",
+                "actions": list(source["actions"]),
+                "tightened_from": {"mission": mission_budget, "bound": bound_budget},
+            }
+            changed += 1
+    return changed
 
 
 def _order(key: str) -> tuple[int, ...]:
