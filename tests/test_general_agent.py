@@ -247,8 +247,12 @@ def test_resume_continues_and_final_eval_has_the_reference(tmp_path):
     resumed.run(progress=False)
     assert resumed.updates == 9
     final = json.loads((tmp_path / "final_eval.json").read_text())
-    assert final["maps"] == 1 and final["conditions"]["training"]["updates"] == 9
-    assert final["references"]["safe-greedy"]["landing_ratio"] == 1.0
+    assert final["map_set"]["name"] == "validation" and final["map_set"]["maps"] == 1
+    assert final["conditions"]["training"]["updates"] == 9
+    agent, reference = final["policies"]  # the agent, the reference planner beside it
+    assert agent["policy"] == "ddqn-general" and agent["maps"] == 1
+    assert reference["policy"] == "safe-greedy" and reference["mean_landing_ratio"] == 1.0
+    assert {r["policy"] for r in final["rows"]} == {"ddqn-general", "safe-greedy"}
 
 
 def test_bad_general_checkpoints_are_clear_errors(trained, tmp_path):

@@ -198,7 +198,7 @@ def test_a_wind_agent_file_observes_the_wind_and_results_name_its_margin(wind_ru
     assert result.conditions["policy"]["wind_margin"]["gusty_sigmas"] == 5.0
     assert result.conditions["grid_config"]["wind"]["max_speed"] == 9.0
     final = json.loads((out / "final_eval.json").read_text())
-    assert "safe-greedy-wind" in final["references"] and "safe-greedy" not in final["references"]
+    assert [p["policy"] for p in final["policies"]][1:] == ["safe-greedy-wind"]
     assert final["conditions"]["wind"]["max_speed"] == 12.0
     state = load_checkpoint(out / "agent.pt")
     state["config"]["wind_planner_sigmas"] = float("nan")

@@ -28,7 +28,7 @@ from cpp_mujoco.agent.checkpoint import CheckpointError, is_general, load_checkp
 from cpp_mujoco.agent.fcn_network import ARCHITECTURE as FCN
 from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
-from cpp_mujoco.agent.general_eval import ValidationResult, validate
+from cpp_mujoco.agent.general_eval import validate
 from cpp_mujoco.agent.general_network import ARCHITECTURE as GENERAL
 from cpp_mujoco.agent.general_network import GeneralQNetwork, widen_for_wind_inputs
 from cpp_mujoco.agent.map_pool import MapPool, MapwiseGuide
@@ -40,6 +40,7 @@ from cpp_mujoco.agent.training_state import RESUMABLE_CHANGES, changed_settings
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.maps.symmetry import map_images
 from cpp_mujoco.planners import make_planner
+from cpp_mujoco.protocol.map_sets import MapSetResult
 from cpp_mujoco.protocol.policy import Policy
 
 # flown on the validation maps beside the final agent: in the wind option the planner that prices
@@ -131,7 +132,7 @@ class MapPoolSource:
     def budget_step(self, full: bool) -> int:
         return self.config.final_budget_step if full else self.config.eval_budget_step
 
-    def evaluate(self, agent: Policy, budget_step: int) -> ValidationResult:
+    def evaluate(self, agent: Policy, budget_step: int) -> MapSetResult:
         """Greedy protocol on the validation maps, every ``budget_step``-th budget."""
         res = validate(agent, self.val_pool, budget_step)
         wind = self.val_pool.wind
@@ -140,13 +141,13 @@ class MapPoolSource:
                           "wind": None if wind is None else asdict(wind)}  # fmt: skip
         return res
 
-    def complete(self, result: ValidationResult, budget_step: int) -> None:
-        """The reference planner's figures on the same maps and budgets."""
+    def complete(self, result: MapSetResult, budget_step: int) -> None:
+        """The reference planner flown beside the agent on the same maps and budgets."""
         c = self.config
         reference = WIND_REFERENCE_PLANNER if c.wind else REFERENCE_PLANNER
-        if reference not in result.references:
+        if reference not in result.policies:
             planner = make_planner(reference, c.wind_margin)
-            result.references[reference] = validate(planner, self.val_pool, budget_step).summary()
+            result.extend(validate(planner, self.val_pool, budget_step, name=reference))
 
     def payload(self) -> dict:
         return {"train_maps": self.pool.identity(), "validation_maps": self.val_pool.identity()}

@@ -331,7 +331,7 @@ class Trainer:
             }  # fmt: skip
             res.to_json(self.out / "final_eval.json")
             print(
-                f"full protocol ({res.landed.size} episodes): landing {res.landing_ratio:.4f}, "
+                f"full protocol ({res.episodes} episodes): landing {res.landing_ratio:.4f}, "
                 f"coverage {res.coverage_ratio:.4f}"
             )
         return self.history[-1] if self.history else {}

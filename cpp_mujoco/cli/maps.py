@@ -152,7 +152,8 @@ def cmd_evaluate_map_set(
     path = result.to_json(out / f"{backend}_{file_part(spec.name)}{part}.json")
     grid_maps = {m.label: m for m in result.maps}  # drawn from the JSON just written
     figures = write_map_set_figures({path.stem: load_map_set_result(path)}, out, grid_maps)
-    budgets = f"budgets {result.budgets[0]}..{result.budgets[-1]} step {args.budget_step}"
+    (flown,) = result.budgets.values()  # a set is one size class
+    budgets = f"budgets {flown[0]}..{flown[-1]} step {args.budget_step}"
     where = args.backend if wind is None else f"grid, wind {args.grid_wind:g} m/s from N/E/S/W"
     print(f"map set {spec.name}: {len(maps)} of {spec.count} maps, {budgets}, {where}")
     print(per_map)

@@ -3,10 +3,8 @@
 On the grid, episodes run together in a batched :class:`GridMDP` — in chunks of at most
 ``chunk_cells`` episode-cells, so memory does not grow with episodes × map size; each chunk is one
 :func:`~cpp_mujoco.protocol.episode.run_batch` (an episode start for the policy). In MuJoCo the
-episodes
-are flown one by one, over this machine's cores or over Ray
-(:mod:`cpp_mujoco.protocol.physics_engines`).
-A full grid protocol for a 16×16 map is one chunk and takes about a second for a fast policy.
+episodes are flown over this machine's cores or over Ray (:mod:`.physics_engines`). A full
+grid protocol for a 16×16 map is one chunk and takes about a second for a fast policy.
 Every result carries the map it ran on (``grid_map``) and the conditions that produced its numbers.
 """
 
@@ -60,11 +58,8 @@ __all__ = [
 
 @dataclass
 class EvaluationResult:
-    """Per-episode outcomes of one protocol run; ratios and the per-budget table derive.
-
-    ``grid_map`` is the map actually evaluated (``map_name`` is its unambiguous label);
-    ``conditions`` records what else decided the numbers (backend, budgets, options, version).
-    """
+    """Per-episode outcomes of one protocol run on ``grid_map``; ratios and the per-budget
+    table derive; ``conditions``: what else decided the numbers (backend, budgets, options)."""
 
     grid_map: GridMap
     policy_name: str
@@ -90,6 +85,10 @@ class EvaluationResult:
     def map_name(self) -> str:
         """The map's label: a user's ``A.png`` is ``A-<digest>``, never the bundled A."""
         return self.grid_map.label
+
+    @property
+    def episodes(self) -> int:
+        return int(self.landed.size)
 
     @property
     def landing_ratio(self) -> float:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.map_sets.sets import MapSetSpec
 from cpp_mujoco.map_sets.size_classes import size_config
@@ -44,14 +45,17 @@ _NUMBERS = ("episodes", "landing_ratio", "coverage_ratio", "mean_return", "mean_
 
 @dataclass
 class MapSetResult:
-    """Per-map, per-policy protocol figures over (the first ``len(maps)`` maps of) a set."""
+    """Per-map, per-policy protocol figures over a list of maps: a held-out set (or its first
+    maps), or a training run's validation pool. The first policy is the result's subject (its
+    ``landing_ratio`` …); the others are flown beside it on the same maps and budgets."""
 
-    spec: MapSetSpec
+    identity: dict  # what the maps are: a set's name, version, size … or a pool's seeds and digest
     maps: list[GridMap]
-    budgets: list[int]
+    budgets: dict[int, list[int]]  # the budgets flown, per map side (its size class's)
     budget_step: int
     rows: list[dict] = field(default_factory=list)  # one per map and policy
     backend: str = "grid"
+    conditions: dict = field(default_factory=dict)  # the run's own (e.g. a training run's)
 
     def __repr__(self) -> str:  # the maps and rows would bury the figures
         means = ", ".join(
@@ -59,7 +63,43 @@ class MapSetResult:
             f"{s['mean_coverage_ratio']:.2%}"
             for s in self.summary()
         )
-        return f"MapSetResult({self.spec.name}, {len(self.maps)} maps, {self.backend}; {means})"
+        return f"MapSetResult({self.name}, {len(self.maps)} maps, {self.backend}; {means})"
+
+    @property
+    def name(self) -> str:
+        return str(self.identity.get("name", "maps"))
+
+    def _subject(self) -> dict:
+        if not self.rows:
+            raise ValueError(f"{self.name}: no policy flown yet")
+        return self.summary()[0]
+
+    @property
+    def landing_ratio(self) -> float:
+        """The first policy's landing ratio, the mean over the maps."""
+        return self._subject()["mean_landing_ratio"]
+
+    @property
+    def coverage_ratio(self) -> float:
+        """The first policy's coverage ratio, the mean over the maps."""
+        return self._subject()["mean_coverage_ratio"]
+
+    @property
+    def episodes(self) -> int:
+        return self._subject()["episodes"]
+
+    @property
+    def returns(self) -> np.ndarray:
+        """The first policy's mean return per map (``returns.mean()`` weighs the maps equally)."""
+        first = self.policies[0]
+        return np.array([r["mean_return"] for r in self.rows if r["policy"] == first])
+
+    def extend(self, other: MapSetResult) -> None:
+        """Add the rows of ``other``: more policies flown on the same maps and budgets."""
+        same = [m.digest for m in self.maps] == [m.digest for m in other.maps]
+        if not same or self.budgets != other.budgets or self.backend != other.backend:
+            raise ValueError(f"{other.name}: not the maps, budgets and backend of {self.name}")
+        self.rows.extend(other.rows)
 
     @property
     def policies(self) -> list[str]:
@@ -86,6 +126,16 @@ class MapSetResult:
                     "seconds": float(sum(r["seconds"] for r in rows)),
                 }
             )
+            if len(self.budgets) > 1:  # several size classes: each one's means too
+                side = np.array([max(m.shape) for m in self.maps])
+                out[-1]["per_size"] = {
+                    str(size): {
+                        "maps": int((side == size).sum()),
+                        "mean_landing_ratio": float(landing[side == size].mean()),
+                        "mean_coverage_ratio": float(coverage[side == size].mean()),
+                    }
+                    for size in sorted(self.budgets)
+                }
         return out
 
     def to_dict(self) -> dict:
@@ -98,17 +148,22 @@ class MapSetResult:
             if conditions:
                 entry["conditions"] = conditions
             rows.append(entry)
+
+        def per_side(value):  # one size class: the value; several: the value per side
+            out = {str(side): value(b) for side, b in sorted(self.budgets.items())}
+            return next(iter(out.values())) if len(out) == 1 else out
+
         return {
-            "map_set": self.spec.identity(len(self.maps)),
+            "map_set": self.identity,
             "backend": self.backend,
-            "budgets": {"min": self.budgets[0], "max": self.budgets[-1], "step": self.budget_step},
+            "budgets": per_side(lambda b: {"min": b[0], "max": b[-1], "step": self.budget_step}),
             "mean_is": "the mean over the maps of each map's ratio (every map weighs the same)",
             "example_episode": {
                 "start": "each map's first landing cell (row-major order)",
-                "budget": example_budget(self.budgets),
+                "budget": per_side(example_budget),
             },
             "policies": self.summary(),
-            "conditions": shared,
+            "conditions": {**shared, **json_plain(self.conditions)},
             "rows": rows,
         }
 
@@ -214,25 +269,53 @@ def evaluate_map_set(
     for grid_map, digest in zip(maps, spec.digests, strict=False):
         if grid_map.digest != digest:  # rows name each map by the set's seed: they must match
             raise ValueError(f"map {grid_map.label!r} is not the next map of set {spec.name!r}")
-    physics: dict[str, Any] = {}
     if backend == "mujoco":
         check_physics(spec, maps[0], env_kwargs)
-        physics = {"workers": workers, "env_kwargs": env_kwargs, "engine": engine}
     config = size_config(spec.size)
     if grid_wind is not None:
         if backend != "grid":
             raise ValueError("grid_wind is the grid's wind option; MuJoCo flies env_kwargs' wind")
         config = replace(config, wind=grid_wind)
-    budgets = protocol_budgets(config, step=budget_step)
-    middle = example_budget(budgets)
-    result = MapSetResult(spec, list(maps), budgets, budget_step, backend=backend)
+    return evaluate_maps(
+        spec.identity(len(maps)), maps, [config] * len(maps), spec.seeds[: len(maps)], policies,
+        budget_step, progress, backend, workers=workers, env_kwargs=env_kwargs, engine=engine,
+    )  # fmt: skip
+
+
+def evaluate_maps(
+    identity: dict,
+    maps: Sequence[GridMap],
+    configs: Sequence[GridConfig],
+    seeds: Sequence[int],
+    policies: Sequence[tuple[str, Any]],
+    budget_step: int = 1,
+    progress: bool = False,
+    backend: str = "grid",
+    *,
+    workers: int | None = None,
+    env_kwargs: dict | None = None,
+    engine: str = "local",
+) -> MapSetResult:
+    """Every policy over every map with the map's own config (its size class's budgets, every
+    ``budget_step``-th): the protocol of :func:`evaluate_map_set` for any list of maps, e.g. a
+    training run's validation pool; ``identity`` says what the maps are, ``seeds`` name them."""
+    physics: dict[str, Any] = {}
+    if backend == "mujoco":
+        physics = {"workers": workers, "env_kwargs": env_kwargs, "engine": engine}
+    budgets: dict[int, list[int]] = {}
+    for grid_map, config in zip(maps, configs, strict=True):
+        flown = protocol_budgets(config, step=budget_step)
+        if budgets.setdefault(max(grid_map.shape), flown) != flown:
+            raise ValueError(f"maps of side {max(grid_map.shape)} with different budgets")
+    result = MapSetResult(identity, list(maps), budgets, budget_step, backend=backend)
     total = len(maps) * len(policies)
-    with tqdm(total=total, desc=spec.name, unit="run", disable=not progress) as bar:
+    with tqdm(total=total, desc=result.name, unit="run", disable=not progress) as bar:
         for name, policy in policies:
-            for grid_map, seed in zip(maps, spec.seeds, strict=False):
+            for grid_map, seed, config in zip(maps, seeds, configs, strict=True):
+                own = budgets[max(grid_map.shape)]
                 start = time.perf_counter()
                 r = evaluate(
-                    policy, grid_map, backend=backend, budgets=budgets, config=config,
+                    policy, grid_map, backend=backend, budgets=own, config=config,
                     policy_name=name, **physics,
                 )  # fmt: skip
                 seconds = time.perf_counter() - start
@@ -247,7 +330,7 @@ def evaluate_map_set(
                         "backend": r.backend,
                         **{k: summary[k] for k in _NUMBERS},
                         "seconds": seconds,
-                        "example": example_episode(r, middle),
+                        "example": example_episode(r, example_budget(own)),
                         "conditions": r.conditions,
                     }
                 )
