@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
@@ -126,6 +127,7 @@ def main() -> None:
     mean = wind_costs().at(np.array([args.speed]))[0][0]
     excess = {name: c - mean[np.tile(kinds, (len(c) // len(kinds), 1))] for name, c in cost.items()}
     result = {
+        "command": "python scripts/gust_tail.py " + " ".join(sys.argv[1:]),
         "conditions": {"wind_speed": args.speed, "directions": "each of N/E/S/W",
                        "turbulence": "moderate", "flights": len(flown),
                        "moves_per_flight": int(kinds.shape[1]),

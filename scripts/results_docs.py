@@ -12,7 +12,11 @@ backend and the conditions it was flown under) and writes:
 - docs/results/optimum.md: the exact planner's table of A, B and C (the one docs/optimum.md
   holds, from the same code) and the sampled held-out sets (results/optimum_<set>.json);
 - docs/results/map_sets.md: the planners and the general agent over a held-out map set's whole
-  protocol (results/map_set_<set>.json, from ``cpp-mujoco evaluate --map-set``), when committed.
+  protocol (results/map_set_<set>.json, from ``cpp-mujoco evaluate --map-set``), when committed;
+- tables inside the prose pages, between ``<!-- results:NAME:start -->`` and its end marker:
+  the bundled maps (docs/maps.md, from the maps), the reference planners on A, B and C
+  (docs/grid.md, results/planners_abc.json) and the general agent beside the planners on the
+  held-out sets (docs/agent.md, results/map_set_*.json and results/optimum_abc.json).
 
 Nothing else is read, so running it twice changes nothing, and tests/test_results_docs.py fails
 when a committed page is not what this script writes.
@@ -258,9 +262,10 @@ WIND_COSTS = ROOT / "cpp_mujoco" / "grid" / "wind_costs.json"
 
 
 def grid_wind_page() -> str:
+    from cpp_mujoco.review.doc_tables import grid_wind_table
+
     data = json.loads(WIND_COSTS.read_text(encoding="utf-8"))
-    kinds = data["kinds"]
-    lines = [
+    return "\n".join([
         GENERATED,
         "# Results: what an action costs in wind",
         "",
@@ -268,26 +273,8 @@ def grid_wind_page() -> str:
         "what MuJoCo measured for its kind at the episode's wind: the mean ± standard deviation "
         "in budget units, and the gust term's lag-1 correlation and skewness.",
         "",
-        "| wind m/s | " + " | ".join(kinds) + " | lag-1 corr. | skewness |",
-        "|---|" + "---|" * (len(kinds) + 2),
-    ]
-    for row in data["speeds"]:
-        calm = row["wind_speed"] == 0
-        cells = [
-            f"{row['mean'][k]:.2f}" if calm else f"{row['mean'][k]:.2f} ± {row['std'][k]:.2f}"
-            for k in kinds
-        ]
-        extra = ["–", "–"] if calm else [f"{row['lag1_correlation']:.2f}", f"{row['skewness']:.2f}"]
-        lines.append(f"| {row['wind_speed']:g} | " + " | ".join(cells + extra) + " |")
-    directions = ", ".join(f"{d:g}°" for d in data["directions"])
-    lines += [
-        "",
-        f"{data['turbulence']} turbulence, {data['repeats']} gust histories × the wind from "
-        f"{directions} per speed; one unit is {data['unit_energy_j']:.1f} J; physics digest "
-        f"`{data['physics_digest']}`. From `cpp_mujoco/grid/wind_costs.json`, flown by "
-        f"`{data['command']}`.",
-    ]
-    return "\n".join(lines) + "\n"
+        grid_wind_table(data),
+    ]) + "\n"  # fmt: skip
 
 
 # ------------------------------------------------------------------------- held-out map sets
@@ -310,6 +297,63 @@ def evaluate_map_set(name: str) -> None:
         shutil.copyfile(Path(out) / f"grid_{name}.json", RESULTS / f"map_set_{name}.json")
 
 
+# ------------------------------------------------------- tables inside the prose pages
+PLANNERS = "planners_abc.json"
+PLANNERS_COMMAND = "python scripts/results_docs.py --evaluate planners"
+
+
+def evaluate_planners() -> None:
+    """The reference planners on A, B and C, the whole protocol on the grid, into
+    results/planners_abc.json."""
+    from cpp_mujoco.planners import make_planner
+    from cpp_mujoco.protocol.evaluate import evaluate
+    from cpp_mujoco.util.io import atomic_write_text, json_default
+
+    rows = [
+        evaluate(make_planner(p), name).summary()
+        for name in ("A", "B", "C")
+        for p in ("random", "safe-greedy", "beam-search")
+    ]
+    data = {"command": PLANNERS_COMMAND, "results": rows}
+    atomic_write_text(RESULTS / PLANNERS, json.dumps(data, indent=1, default=json_default))
+
+
+def in_page_tables() -> dict[Path, str]:
+    """The prose pages with each generated table between its markers
+    (``<!-- results:NAME:start -->`` … ``<!-- results:NAME:end -->``)."""
+    from cpp_mujoco.maps import load_map
+    from cpp_mujoco.review import doc_tables
+    from cpp_mujoco.review.optimum_table import replace_between
+
+    docs = ROOT / "docs"
+    tables: dict[Path, list[tuple[str, str]]] = {
+        docs / "maps.md": [("maps", doc_tables.maps_table([load_map(m) for m in "ABC"]))],
+    }
+    wind = json.loads(WIND_COSTS.read_text(encoding="utf-8"))
+    tables[docs / "grid.md"] = [("grid-wind", doc_tables.grid_wind_table(wind))]
+    if (RESULTS / "gust_tail.json").is_file():
+        table = doc_tables.gust_tail_table(load("gust_tail.json"), "results/gust_tail.json")
+        tables[docs / "grid.md"].append(("gust-tail", table))
+    if (RESULTS / PLANNERS).is_file():
+        table = doc_tables.planners_table(load(PLANNERS), f"results/{PLANNERS}")
+        tables[docs / "grid.md"].append(("planners", table))
+    sets = [RESULTS / f"map_set_{name}.json" for name in ("heldout16-v1", "heldout32-v1")]
+    if all(path.is_file() for path in sets):
+        table = doc_tables.held_out_table(
+            [load(path.name) for path in sets], load("optimum_abc.json"),
+            [f"results/{path.name}" for path in sets] + ["results/optimum_abc.json"],
+        )  # fmt: skip
+        tables[docs / "agent.md"] = [("held-out", table)]
+    pages = {}
+    for path, parts in tables.items():
+        text = path.read_text(encoding="utf-8")
+        for name, table in parts:
+            marks = (f"<!-- results:{name}:start -->", f"<!-- results:{name}:end -->")
+            text = replace_between(text, *marks, table, where=path)
+        pages[path] = text
+    return pages
+
+
 def render_all() -> dict[Path, str]:
     """Every file this script writes, path → its whole text (README with its headline)."""
     data = load("optimum_abc.json")
@@ -329,6 +373,7 @@ def render_all() -> dict[Path, str]:
     pages[PAGES / "index.md"] = index_page(data, families)
     readme = README.read_text(encoding="utf-8")
     pages[README] = replace_between(readme, *HEADLINE, headline(data), where=README)
+    pages.update(in_page_tables())
     return pages
 
 
@@ -338,7 +383,7 @@ def main(argv=None) -> int:
     )
     p.add_argument("--check", action="store_true", help="exit 1 if a page drifted; write nothing")
     p.add_argument(
-        "--evaluate", choices=["transfer", "map-set"],
+        "--evaluate", choices=["transfer", "map-set", "planners"],
         help="fly a family first and write its result file",
     )  # fmt: skip
     p.add_argument("--map-set", default="heldout16-v1", help="with --evaluate map-set")
@@ -349,6 +394,8 @@ def main(argv=None) -> int:
         evaluate_transfer(args.workers, args.budget_step)
     elif args.evaluate == "map-set":
         evaluate_map_set(args.map_set)
+    elif args.evaluate == "planners":
+        evaluate_planners()
     drifted = []
     for path, text in render_all().items():
         old = path.read_text(encoding="utf-8") if path.is_file() else None

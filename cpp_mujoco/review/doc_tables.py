@@ -1,0 +1,158 @@
+"""Tables that stand inside the documentation's pages, written from result files and maps.
+
+``scripts/results_docs.py`` puts each between its markers in a page, so a page's numbers are
+the files' (a test fails when they drift). Each function takes the parsed JSON it renders and
+returns Markdown: a table and one line naming its conditions and its source.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cpp_mujoco.maps import GridMap
+
+
+def _budgets(conditions: dict) -> str:
+    b = conditions["budgets"]
+    return f"{b['min']}..{b['max']}" + ("" if b["step"] == 1 else f" every {b['step']}")
+
+
+def _pair(row: dict) -> str:
+    return f"{row['landing_ratio']:.2%} / {row['coverage_ratio']:.2%}"
+
+
+def maps_table(maps: list[GridMap]) -> str:
+    """Each map's size and layers: landing, target (and how many of them are no-fly: seen only
+    from beside), no-fly, and its digest."""
+    lines = [
+        "| map | size | landing | target | of them no-fly | no-fly | digest |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for m in maps:
+        yellow = int((m.target & m.nfz).sum())
+        lines.append(
+            f"| {m.label} | {m.shape[0]}×{m.shape[1]} | {int(m.landing.sum())} | "
+            f"{int(m.target.sum())} | {yellow} | {int(m.nfz.sum())} | `{m.digest}` |"
+        )
+    return "\n".join(lines)
+
+
+def planners_table(data: dict, source: str) -> str:
+    """Landing / coverage of each reference planner per map, beside the best missions."""
+    rows = data["results"]
+    policies = list(dict.fromkeys(r["policy"] for r in rows))
+    maps = list(dict.fromkeys(r["map"] for r in rows))
+    cell = {(r["map"], r["policy"]): r for r in rows}
+    lines = [
+        "| map | episodes | " + " | ".join(policies) + " | best missions (proven) |",
+        "|---|---|" + "---|" * (len(policies) + 1),
+    ]
+    for m in maps:
+        first = cell[(m, policies[0])]
+        o = first["optimum"]
+        lines.append(
+            f"| {m} | {first['episodes']} | "
+            + " | ".join(_pair(cell[(m, p)]) for p in policies)
+            + f" | {o['coverage_ratio']:.2%} ({o['statuses'].get('optimal', 0)} / "
+            f"{o['episodes_known']}) |"
+        )
+    budgets = {_budgets(r["conditions"]) for r in rows}
+    lines += [
+        "",
+        f"Landing / coverage on the {rows[0]['backend']} backend, every landing cell × budgets "
+        f"{', '.join(sorted(budgets))}; the random planner draws from seed 0. From `{source}`, "
+        f"flown by `{data['command']}`.",
+    ]
+    return "\n".join(lines)
+
+
+def _policy(name: str) -> str:
+    """A result's policy by what it is: the general agent (``ddqn[general]``), a per-map agent
+    (``ddqn-A``, ``ddqn[A]``), or a planner."""
+    if name in ("general", "ddqn[general]"):
+        return "general"
+    return "ddqn" if name.startswith("ddqn") else name
+
+
+def held_out_table(sets: list[dict], abc: dict, sources: list[str]) -> str:
+    """The general agent beside the planners on each held-out set (means over the maps) and on
+    A, B and C (with the per-map agents), landing / coverage."""
+    by_set = [{_policy(s["policy"]): s for s in data["policies"]} for data in sets]
+    abc_rows = abc["results"]
+    maps = list(dict.fromkeys(r["map"] for r in abc_rows))
+    head = [f"{d['map_set']['name']} ({d['map_set']['evaluated']} maps)" for d in sets]
+    lines = [
+        "| | " + " | ".join(head) + f" | {' / '.join(maps)} |",
+        "|---|" + "---|" * (len(sets) + 1),
+    ]
+    labels = {"general": "general agent", "safe-greedy": "safe greedy",
+              "beam-search": "beam search", "ddqn": "per-map paper agents"}  # fmt: skip
+    for policy, label in labels.items():
+        cells = [
+            f"{s[policy]['mean_landing_ratio']:.2%} / {s[policy]['mean_coverage_ratio']:.2%}"
+            if policy in s
+            else "—"
+            for s in by_set
+        ]
+        rows = [r for r in abc_rows if _policy(r["policy"]) == policy]
+        land = np.mean([r["landing_ratio"] for r in rows])
+        cover = ", ".join(f"{r['coverage_ratio']:.2%}" for r in rows)
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {land:.2%} / {cover} |")
+    lines += [
+        "",
+        "Landing / coverage, the paper's protocol per map on the grid (every landing cell × every "
+        "budget of the map's size class); on a held-out set the mean over its maps, on A, B and C "
+        "the mean landing and each map's coverage. From "
+        + ", ".join(f"`{s}`" for s in sources)
+        + ".",
+    ]
+    return "\n".join(lines)
+
+
+def grid_wind_table(data: dict) -> str:
+    """The grid's wind option per speed: each action kind's cost in units (mean ± std), the gust
+    term's lag-1 correlation and skewness (``cpp_mujoco/grid/wind_costs.json``)."""
+    kinds = data["kinds"]
+    lines = [
+        "| wind m/s | " + " | ".join(kinds) + " | lag-1 corr. | skewness |",
+        "|---|" + "---|" * (len(kinds) + 2),
+    ]
+    for row in data["speeds"]:
+        calm = row["wind_speed"] == 0
+        cells = [
+            f"{row['mean'][k]:.2f}" if calm else f"{row['mean'][k]:.2f} ± {row['std'][k]:.2f}"
+            for k in kinds
+        ]
+        extra = ["–", "–"] if calm else [f"{row['lag1_correlation']:.2f}", f"{row['skewness']:.2f}"]
+        lines.append(f"| {row['wind_speed']:g} | " + " | ".join(cells + extra) + " |")
+    directions = ", ".join(f"{d:g}°" for d in data["directions"])
+    lines += [
+        "",
+        f"{data['turbulence']} turbulence, {data['repeats']} gust histories × the wind from "
+        f"{directions} per speed; one unit is {data['unit_energy_j']:.1f} J; physics digest "
+        f"`{data['physics_digest']}`. From `cpp_mujoco/grid/wind_costs.json`, flown by "
+        f"`{data['command']}`.",
+    ]
+    return "\n".join(lines)
+
+
+def gust_tail_table(data: dict, source: str) -> str:
+    """What a way home of k moves costs above its mean at the rated wind, MuJoCo beside the
+    grid's wind option: standard deviation / 99th / 99.9th percentile in units."""
+    rows = data["excess_over_mean_cost_units"]
+    c = data["conditions"]
+    lines = ["| k moves | MuJoCo | grid option |", "|---|---|---|"]
+    for k in rows["mujoco"]:
+        if not k.isdigit():
+            continue
+        cells = [f"{r[k]['std']:.2f} / {r[k]['p99']:.2f} / {r[k]['p99_9']:.2f}"
+                 for r in (rows["mujoco"], rows["grid"])]  # fmt: skip
+        lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        f"{c['flights']} MuJoCo flights of {c['moves_per_flight']} random moves, "
+        f"{c['wind_speed']:g} m/s from {c['directions']}, {c['turbulence']} turbulence; physics "
+        f"digest `{c['physics_digest']}`. From `{source}`, flown by "
+        f"`{data.get('command', 'python scripts/gust_tail.py')}`.",
+    ]
+    return "\n".join(lines)
