@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
@@ -127,7 +126,8 @@ def main() -> None:
     mean = wind_costs().at(np.array([args.speed]))[0][0]
     excess = {name: c - mean[np.tile(kinds, (len(c) // len(kinds), 1))] for name, c in cost.items()}
     result = {
-        "command": "python scripts/gust_tail.py " + " ".join(sys.argv[1:]),
+        "command": f"python scripts/gust_tail.py --speed {args.speed:g} --flights {args.flights} "
+        f"--rounds {args.rounds}",
         "conditions": {"wind_speed": args.speed, "directions": "each of N/E/S/W",
                        "turbulence": "moderate", "flights": len(flown),
                        "moves_per_flight": int(kinds.shape[1]),
