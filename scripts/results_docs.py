@@ -337,13 +337,19 @@ def in_page_tables() -> dict[Path, str]:
     if (RESULTS / PLANNERS).is_file():
         table = doc_tables.planners_table(load(PLANNERS), f"results/{PLANNERS}")
         tables[docs / "grid.md"].append(("planners", table))
+    from cpp_mujoco.agent.checkpoint import load_checkpoint
+
+    bundled = ROOT / "cpp_mujoco" / "agent" / "bundled"
+    metrics = {m: load_checkpoint(bundled / f"{m}.pt")["metrics"] for m in "ABC"}
+    table = doc_tables.agents_table(metrics, load("optimum_abc.json"), "results/optimum_abc.json")
+    tables[docs / "agent.md"] = [("agents", table)]
     sets = [RESULTS / f"map_set_{name}.json" for name in ("heldout16-v1", "heldout32-v1")]
     if all(path.is_file() for path in sets):
         table = doc_tables.held_out_table(
             [load(path.name) for path in sets], load("optimum_abc.json"),
             [f"results/{path.name}" for path in sets] + ["results/optimum_abc.json"],
         )  # fmt: skip
-        tables[docs / "agent.md"] = [("held-out", table)]
+        tables[docs / "agent.md"].append(("held-out", table))
     pages = {}
     for path, parts in tables.items():
         text = path.read_text(encoding="utf-8")

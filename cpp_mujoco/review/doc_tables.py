@@ -156,3 +156,38 @@ def gust_tail_table(data: dict, source: str) -> str:
         f"`{data.get('command', 'python scripts/gust_tail.py')}`.",
     ]
     return "\n".join(lines)
+
+
+# the paper's Table I (Theile et al., IROS 2020): each map's landing ratio over the full protocol
+PAPER_LANDING = {"A": 0.9937, "B": 0.9978, "C": 0.9826}
+
+
+def agents_table(metrics: dict[str, dict], abc: dict, source: str) -> str:
+    """Each bundled per-map agent: its training (updates, episodes and wall time to the kept
+    weights, from the agent file), its full-protocol landing and coverage beside the paper's
+    landing ratio, the planners' coverage and the best missions'."""
+    by = {(r["map"], r["policy"].split("-")[0] if r["policy"].startswith("ddqn") else r["policy"]):
+          r for r in abc["results"]}  # fmt: skip
+    lines = [
+        "| map | updates | episodes | wall time | landing | coverage | paper's landing "
+        "| safe-greedy coverage | beam-search coverage | best missions |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, m in metrics.items():
+        agent = by[(name, "ddqn")]
+        landed = round(agent["landing_ratio"] * agent["episodes"])
+        lines.append(
+            f"| {name} | {m['updates']:,} | {m['episodes']:,} | {m['wall_s']:,.0f} s | "
+            f"**{agent['landing_ratio']:.2%}** ({landed}/{agent['episodes']}) | "
+            f"**{agent['coverage_ratio']:.2%}** | {PAPER_LANDING[name]:.2%} | "
+            f"{by[(name, 'safe-greedy')]['coverage_ratio']:.2%} | "
+            f"{by[(name, 'beam-search')]['coverage_ratio']:.2%} | "
+            f"{agent['optimum']['coverage_ratio']:.2%} |"
+        )
+    lines += [
+        "",
+        "Updates, episodes and wall time to the kept weights (the run's best evaluation) from "
+        "each agent file's metrics; the paper's landing ratio from its Table I; landing and "
+        f"coverage over the full protocol (every landing cell × budgets 25..75) from `{source}`.",
+    ]
+    return "\n".join(lines)
