@@ -199,34 +199,12 @@ def map_set_page(paths: list[Path]) -> str:
 
 # ------------------------------------------------------------------ grid → MuJoCo (transfer)
 TRANSFER = "transfer_abc.json"
-TRANSFER_COMMAND = "python scripts/results_docs.py --evaluate transfer"
-
-
-def evaluate_transfer(workers: int, budget_step: int) -> None:
-    """The bundled per-map agents on A, B and C, on the grid and flown unchanged in calm MuJoCo
-    air over the same episodes; writes results/transfer_abc.json."""
-    from cpp_mujoco.agent import load_agent
-    from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
-    from cpp_mujoco.util.io import atomic_write_text, json_default
-
-    budgets = protocol_budgets(step=budget_step)
-    rows = []
-    for name in ("A", "B", "C"):
-        agent = load_agent(name)
-        for backend in ("grid", "mujoco"):
-            kwargs = {"workers": workers} if backend == "mujoco" else {}
-            result = evaluate(agent, name, backend=backend, budgets=budgets, **kwargs)
-            rows.append(result.summary())
-            print(f"{name} {backend}: {result.landing_ratio:.2%} / {result.coverage_ratio:.2%}")
-    data = {"command": f"{TRANSFER_COMMAND} --budget-step {budget_step}", "results": rows}
-    atomic_write_text(RESULTS / TRANSFER, json.dumps(data, indent=1, default=json_default))
 
 
 def transfer_page(data: dict) -> str:
-    rows = data["results"]
-    by = {(r["map"], r["backend"]): r for r in rows}
-    maps = list(dict.fromkeys(r["map"] for r in rows))
-    lines = [
+    from cpp_mujoco.review.doc_tables import transfer_table
+
+    return "\n".join([
         GENERATED,
         "# Results: grid → MuJoCo",
         "",
@@ -234,27 +212,8 @@ def transfer_page(data: dict) -> str:
         "quadrotor in calm air over the same episodes (how a grid action is flown: "
         "[physics](../physics.md)).",
         "",
-        "| map | policy | episodes | grid landing | MuJoCo landing | grid coverage "
-        "| MuJoCo coverage | J per action | no-fly violations | crashes |",
-        "|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for m in maps:
-        g, p = by[(m, "grid")], by[(m, "mujoco")]
-        if g["episodes"] != p["episodes"] or g["map_digest"] != p["map_digest"]:
-            raise ValueError(f"map {m}: the grid and MuJoCo results are not the same episodes")
-        lines.append(
-            f"| {m} | {p['policy']} | {p['episodes']} | {g['landing_ratio']:.2%} | "
-            f"{p['landing_ratio']:.2%} | {g['coverage_ratio']:.2%} | {p['coverage_ratio']:.2%} | "
-            f"{p['energy_per_action_j']:.0f} | {p['nfz_violations']} | {p['crashes']} |"
-        )
-    budgets = {budgets_text(r["conditions"]) for r in rows}
-    lines += [
-        "",
-        f"Every landing cell × budgets {', '.join(sorted(budgets))}; map digests "
-        + ", ".join(f"{m} `{by[(m, 'grid')]['map_digest']}`" for m in maps)
-        + f". From `results/{TRANSFER}`, flown by `{data['command']}`.",
-    ]
-    return "\n".join(lines) + "\n"
+        transfer_table(data, f"results/{TRANSFER}"),
+    ]) + "\n"  # fmt: skip
 
 
 # --------------------------------------------------------------- the grid's wind option
@@ -278,44 +237,14 @@ def grid_wind_page() -> str:
 
 
 # ------------------------------------------------------------------------- held-out map sets
-MAP_SET_COMMAND = "python scripts/results_docs.py --evaluate map-set"
-
-
-def evaluate_map_set(name: str) -> None:
-    """``cpp-mujoco evaluate --map-set NAME`` for the planners and the general agent on the grid
-    (every map, the whole protocol); its JSON becomes results/map_set_<NAME>.json."""
-    import shutil
-    import tempfile
-
-    from cpp_mujoco.cli.main import main as cli
-
-    with tempfile.TemporaryDirectory() as out:
-        args = ["evaluate", "--map-set", name, "--planner", "safe-greedy", "beam-search"]
-        code = cli([*args, "--agent", "general", "--out", out])
-        if code:
-            raise SystemExit(code)
-        shutil.copyfile(Path(out) / f"grid_{name}.json", RESULTS / f"map_set_{name}.json")
+MAP_SET_COMMAND = "python scripts/results_flights.py map-set"
 
 
 # ------------------------------------------------------- tables inside the prose pages
 PLANNERS = "planners_abc.json"
-PLANNERS_COMMAND = "python scripts/results_docs.py --evaluate planners"
 
 
-def evaluate_planners() -> None:
-    """The reference planners on A, B and C, the whole protocol on the grid, into
-    results/planners_abc.json."""
-    from cpp_mujoco.planners import make_planner
-    from cpp_mujoco.protocol.evaluate import evaluate
-    from cpp_mujoco.util.io import atomic_write_text, json_default
-
-    rows = [
-        evaluate(make_planner(p), name).summary()
-        for name in ("A", "B", "C")
-        for p in ("random", "safe-greedy", "beam-search")
-    ]
-    data = {"command": PLANNERS_COMMAND, "results": rows}
-    atomic_write_text(RESULTS / PLANNERS, json.dumps(data, indent=1, default=json_default))
+ENERGY = "action_energy.json"
 
 
 def in_page_tables() -> dict[Path, str]:
@@ -343,6 +272,15 @@ def in_page_tables() -> dict[Path, str]:
     metrics = {m: load_checkpoint(bundled / f"{m}.pt")["metrics"] for m in "ABC"}
     table = doc_tables.agents_table(metrics, load("optimum_abc.json"), "results/optimum_abc.json")
     tables[docs / "agent.md"] = [("agents", table)]
+    wind_page = []
+    if (RESULTS / TRANSFER).is_file() and load(TRANSFER)["results"][0]["conditions"]["budgets"][
+        "step"
+    ] == 1:  # the full protocol only
+        wind_page.append(("transfer", doc_tables.transfer_table(load(TRANSFER), TRANSFER)))
+    if (RESULTS / ENERGY).is_file():
+        wind_page.append(("energy", doc_tables.energy_table(load(ENERGY), f"results/{ENERGY}")))
+    if wind_page:
+        tables[docs / "wind.md"] = wind_page
     sets = [RESULTS / f"map_set_{name}.json" for name in ("heldout16-v1", "heldout32-v1")]
     if all(path.is_file() for path in sets):
         table = doc_tables.held_out_table(
@@ -388,20 +326,7 @@ def main(argv=None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     p.add_argument("--check", action="store_true", help="exit 1 if a page drifted; write nothing")
-    p.add_argument(
-        "--evaluate", choices=["transfer", "map-set", "planners"],
-        help="fly a family first and write its result file",
-    )  # fmt: skip
-    p.add_argument("--map-set", default="heldout16-v1", help="with --evaluate map-set")
-    p.add_argument("--workers", type=int, default=2, help="MuJoCo worker processes")
-    p.add_argument("--budget-step", type=int, default=10, help="every n-th budget of 25..75")
     args = p.parse_args(argv)
-    if args.evaluate == "transfer":
-        evaluate_transfer(args.workers, args.budget_step)
-    elif args.evaluate == "map-set":
-        evaluate_map_set(args.map_set)
-    elif args.evaluate == "planners":
-        evaluate_planners()
     drifted = []
     for path, text in render_all().items():
         old = path.read_text(encoding="utf-8") if path.is_file() else None

@@ -191,3 +191,66 @@ def agents_table(metrics: dict[str, dict], abc: dict, source: str) -> str:
         f"coverage over the full protocol (every landing cell × budgets 25..75) from `{source}`.",
     ]
     return "\n".join(lines)
+
+
+COMPASS = {0.0: "N", 90.0: "E", 180.0: "S", 270.0: "W"}
+
+
+def energy_table(data: dict, source: str) -> str:
+    """Battery energy per action in budget units: steady wind, and mean ± std over gust
+    histories in turbulence, per speed and direction (``physics/action_energy.py``)."""
+    kinds, unit, turb = data["kinds"], data["unit_energy_j"], data["turbulence"]
+    lines = [
+        "| wind m/s | from | " + " | ".join(kinds) + " | "
+        + " | ".join(f"{k} ({turb})" for k in kinds) + " |",
+        "|---|---|" + "---|" * (2 * len(kinds)),
+    ]  # fmt: skip
+    for row in data["rows"]:
+        steady, gusty = row["steady"], row["gusty"]
+        cells = [f"{steady['mean_j'][k] / unit:.3f}" if k in steady["mean_j"] else "–"
+                 for k in kinds]  # fmt: skip
+        cells += [
+            f"{gusty['mean_j'][k] / unit:.2f} ± {gusty['std_j'][k] / unit:.2f}"
+            if k in gusty["mean_j"] else "–"
+            for k in kinds
+        ]  # fmt: skip
+        speed = row["wind_speed"]
+        where = COMPASS.get(row["wind_direction"], f"{row['wind_direction']:g}°") if speed else "–"
+        lines.append(f"| {speed:g} | {where} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        f"One unit is {unit:.1f} J (a calm move's calibrated energy); {data['repeats']} gust "
+        f"histories per row in {turb} turbulence (calm air has none). From `{source}`, flown by "
+        f"`{data['command']}`.",
+    ]
+    return "\n".join(lines)
+
+
+def transfer_table(data: dict, source: str) -> str:
+    """The bundled per-map agents on the grid and flown in calm MuJoCo air over the same
+    episodes: landing, coverage, energy per action, no-fly violations, crashes."""
+    rows = data["results"]
+    by = {(r["map"], r["backend"]): r for r in rows}
+    maps = list(dict.fromkeys(r["map"] for r in rows))
+    lines = [
+        "| map | policy | episodes | grid landing | MuJoCo landing | grid coverage "
+        "| MuJoCo coverage | J per action | no-fly violations | crashes |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for m in maps:
+        g, p = by[(m, "grid")], by[(m, "mujoco")]
+        if g["episodes"] != p["episodes"] or g["map_digest"] != p["map_digest"]:
+            raise ValueError(f"map {m}: the grid and MuJoCo results are not the same episodes")
+        lines.append(
+            f"| {m} | {p['policy']} | {p['episodes']} | {g['landing_ratio']:.2%} | "
+            f"{p['landing_ratio']:.2%} | {g['coverage_ratio']:.2%} | {p['coverage_ratio']:.2%} | "
+            f"{p['energy_per_action_j']:.0f} | {p['nfz_violations']} | {p['crashes']} |"
+        )
+    budgets = {_budgets(r["conditions"]) for r in rows}
+    lines += [
+        "",
+        f"Every landing cell × budgets {', '.join(sorted(budgets))}; map digests "
+        + ", ".join(f"{m} `{by[(m, 'grid')]['map_digest']}`" for m in maps)
+        + f". From `{source}`, flown by `{data['command']}`.",
+    ]
+    return "\n".join(lines)

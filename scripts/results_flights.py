@@ -1,0 +1,128 @@
+"""Flies the result families whose files scripts/results_docs.py renders, and writes the files.
+
+    python scripts/results_flights.py planners                    # results/planners_abc.json
+    python scripts/results_flights.py transfer --budget-step 1    # results/transfer_abc.json
+    python scripts/results_flights.py map-set --map-set heldout32-v1   # results/map_set_*.json
+    python scripts/results_flights.py energy                      # results/action_energy.json
+
+then ``python scripts/results_docs.py`` rewrites the pages from them. Each file records the
+command that flew it; every result in it names its map (and digest), policy, backend and
+conditions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "results"
+COMMAND = "python scripts/results_flights.py"
+
+
+def write(name: str, data: dict) -> None:
+    from cpp_mujoco.util.io import atomic_write_text, json_default
+
+    atomic_write_text(RESULTS / name, json.dumps(data, indent=1, default=json_default))
+    print(f"wrote results/{name}")
+
+
+def transfer(workers: int, budget_step: int) -> None:
+    """The bundled per-map agents on A, B and C, on the grid and flown unchanged in calm MuJoCo
+    air over the same episodes: results/transfer_abc.json."""
+    from cpp_mujoco.agent import load_agent
+    from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
+
+    budgets = protocol_budgets(step=budget_step)
+    rows = []
+    for name in ("A", "B", "C"):
+        agent = load_agent(name)
+        for backend in ("grid", "mujoco"):
+            kwargs = {"workers": workers} if backend == "mujoco" else {}
+            result = evaluate(agent, name, backend=backend, budgets=budgets, **kwargs)
+            rows.append(result.summary())
+            print(f"{name} {backend}: {result.landing_ratio:.2%} / {result.coverage_ratio:.2%}")
+    command = f"{COMMAND} transfer --budget-step {budget_step}"
+    write("transfer_abc.json", {"command": command, "results": rows})
+
+
+def map_set(name: str) -> None:
+    """``cpp-mujoco evaluate --map-set NAME`` for the planners and the general agent on the grid
+    (every map, the whole protocol): results/map_set_<NAME>.json."""
+    import shutil
+    import tempfile
+
+    from cpp_mujoco.cli.main import main as cli
+
+    with tempfile.TemporaryDirectory() as out:
+        args = ["evaluate", "--map-set", name, "--planner", "safe-greedy", "beam-search"]
+        code = cli([*args, "--agent", "general", "--out", out])
+        if code:
+            raise SystemExit(code)
+        shutil.copyfile(Path(out) / f"grid_{name}.json", RESULTS / f"map_set_{name}.json")
+
+
+def planners() -> None:
+    """The reference planners on A, B and C, the whole protocol on the grid:
+    results/planners_abc.json."""
+    from cpp_mujoco.planners import make_planner
+    from cpp_mujoco.protocol.evaluate import evaluate
+
+    rows = [
+        evaluate(make_planner(p), name).summary()
+        for name in ("A", "B", "C")
+        for p in ("random", "safe-greedy", "beam-search")
+    ]
+    write("planners_abc.json", {"command": f"{COMMAND} planners", "results": rows})
+
+
+def energy(repeats: int) -> None:
+    """Each kind of action's battery energy on an open map, steady and in moderate turbulence,
+    calm and 3..12 m/s from N/E/S/W: results/action_energy.json."""
+    from dataclasses import asdict
+
+    from cpp_mujoco.physics.action_energy import KINDS, action_energy_table
+    from cpp_mujoco.physics.calibration import unit_energy
+    from cpp_mujoco.physics.config import PhysicsConfig
+
+    config = PhysicsConfig()
+    steady = action_energy_table(config)
+    gusty = action_energy_table(config, turbulence="moderate", repeats=repeats)
+    rows = [
+        {"wind_speed": a.wind_speed, "wind_direction": a.wind_direction,
+         "steady": asdict(a), "gusty": asdict(b)}
+        for a, b in zip(steady, gusty, strict=True)
+    ]  # fmt: skip
+    write("action_energy.json", {
+        "command": f"{COMMAND} energy --repeats {repeats}", "kinds": list(KINDS),
+        "unit_energy_j": unit_energy(config), "turbulence": "moderate", "repeats": repeats,
+        "rows": rows,
+    })  # fmt: skip
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument("family", choices=["planners", "transfer", "map-set", "energy"])
+    p.add_argument("--map-set", default="heldout16-v1", help="map-set: which set")
+    p.add_argument("--workers", type=int, default=2, help="transfer: MuJoCo worker processes")
+    p.add_argument("--budget-step", type=int, default=10, help="transfer: every n-th budget")
+    p.add_argument("--repeats", type=int, default=5, help="energy: gust histories per row")
+    args = p.parse_args(argv)
+    if args.family == "planners":
+        planners()
+    elif args.family == "transfer":
+        transfer(args.workers, args.budget_step)
+    elif args.family == "map-set":
+        map_set(args.map_set)
+    else:
+        energy(args.repeats)
+    print("now: python scripts/results_docs.py (the pages from the files)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
