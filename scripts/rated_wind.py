@@ -61,6 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     )  # fmt: skip
     parser.add_argument("--out", default="out/rated_wind", help="output folder")
     args = parser.parse_args(argv)
+    command = script_command(__file__, argv)
     if error := ray_option_error(args):
         parser.error(error)
     out = Path(args.out)
@@ -95,11 +96,11 @@ def main(argv: list[str] | None = None) -> int:
                 )  # fmt: skip
                 table.rows.append(rated_row(result))
                 print(table.render().splitlines()[-1], flush=True)
-                write_tables(out / "rated_wind.json", {"rated_wind": table})  # after every row
+                write_tables(out / "rated_wind.json", {"rated_wind": table}, command)  # every row
                 write_rendered(out / "rated_wind.md", {"rated_wind": table}, "markdown")
     print(table.render())
     violations = sum(row["values"]["nfz_violations"] for row in table.rows)
-    write_report(out, script_command(__file__, argv))
+    write_report(out, command)
     print(f"\nwritten: {out}/rated_wind.md, rated_wind.json, index.html; no-fly violations: "
           f"{violations}")  # fmt: skip
     return 1 if violations else 0

@@ -65,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     add_ray_options(parser)
     parser.add_argument("--out", default="out/wind_sweep", help="output folder")
     args = parser.parse_args(argv)
+    command = script_command(__file__, argv)
     if error := ray_option_error(args):
         parser.error(error)
     if any(not 0 <= s <= 12 for s in args.speeds):
@@ -94,11 +95,11 @@ def main(argv: list[str] | None = None) -> int:
                     points.rows.append(rated_row(result))
                     print(points.render().splitlines()[-1], flush=True)
                     tables = {"sweep": pivot(results, args.speeds), "points": points}
-                    write_tables(out / "wind_sweep.json", tables)
+                    write_tables(out / "wind_sweep.json", tables, command)
                     write_rendered(out / "wind_sweep.md", tables, "markdown")
                     wind_sweep_figure(results, out / "wind_sweep.png")
     print(pivot(results, args.speeds).render())
-    report = write_report(out, script_command(__file__, argv))
+    report = write_report(out, command)
     print(f"\nwritten: {out}/wind_sweep.md, wind_sweep.json, wind_sweep.png; page: {report}")
     return 0
 

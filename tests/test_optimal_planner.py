@@ -262,3 +262,25 @@ def test_a_known_mission_is_a_point_of_the_model():
         assert (x <= model.upper).all() and model.objective @ x == fly(
             g, int(cell), actions, np.zeros(25, bool)
         )[0]
+
+
+def test_the_relaxations_paths_are_missions_and_the_start_changes_no_answer():
+    from cpp_mujoco.planners.optimal_relaxation import peeled_paths
+    from cpp_mujoco.planners.optimal_solver import _relaxation
+
+    grid_map = load_map("C")
+    g = build_graph(grid_map)
+    width = grid_map.shape[1]
+    for (row, col), budget in (((14, 13), 37), ((15, 2), 45)):
+        start = row * width + col
+        model = EpisodeModel(g, start, budget - 1, np.zeros(g.num_cells, bool))
+        x, value = _relaxation(model, 60.0)
+        paths = peeled_paths(model, x)
+        assert paths and np.isfinite(value)
+        for walk in paths:  # each path a mission: it lands within the budget, under the bound
+            actions = model.actions(walk)
+            seen, landed = fly(g, start, actions, np.zeros(g.num_cells, bool))
+            assert landed and actions.size <= budget and seen <= value + 1e-6
+        plain = solve_episode(g, start, budget, options=SolverOptions(relaxation_start=False))
+        read = solve_episode(g, start, budget)
+        assert plain.status == read.status == "optimal" and plain.seen == read.seen

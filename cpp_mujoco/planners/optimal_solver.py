@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import highspy
 import numpy as np
@@ -27,6 +27,7 @@ import ortools
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import MapGraph
 from cpp_mujoco.planners.optimal_model import EpisodeModel, fly, reachable_bound
+from cpp_mujoco.planners.optimal_relaxation import peeled_paths
 
 SOLVERS = ("highs", "cp-sat")
 
@@ -39,6 +40,7 @@ class SolverOptions:
     workers: int = 1  # the solver's threads
     seed: int = 0  # the solver's random seed
     solver: str = "highs"  # one of SOLVERS
+    relaxation_start: bool = True  # start from the best path of the relaxation's flow
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.time_limit_s) or self.time_limit_s <= 0:
@@ -98,6 +100,24 @@ def _quiet(make):
         os.dup2(saved, 1)
         os.close(saved)
         os.close(null)
+
+
+def _relaxation(model: EpisodeModel, time_limit_s: float) -> tuple[np.ndarray | None, float]:
+    """(the linear relaxation's solution or None, its value: an upper bound; inf if unsolved)."""
+    h = _quiet(highspy.Highs)
+    h.setOptionValue("output_flag", False)
+    h.setOptionValue("time_limit", float(time_limit_s))
+    h.setOptionValue("threads", 1)
+    n, a, inf = model.num_vars, model.A, highspy.kHighsInf
+    h.addVars(n, np.zeros(n), model.upper)
+    h.changeColsCost(n, np.arange(n, dtype=np.int32), -model.objective)
+    h.addRows(a.shape[0], np.where(np.isfinite(model.lo), model.lo, -inf),
+              np.where(np.isfinite(model.hi), model.hi, inf), a.nnz,
+              a.indptr[:-1].astype(np.int32), a.indices.astype(np.int32), a.data)  # fmt: skip
+    h.run()
+    if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+        return None, np.inf
+    return np.asarray(h.getSolution().col_value), -float(h.getInfo().objective_function_value)
 
 
 def _highs(model: EpisodeModel, options: SolverOptions, hint: np.ndarray | None) -> _Answer:
@@ -199,6 +219,18 @@ def solve_episode(
                 known.status, known.time_s = "optimal", time.perf_counter() - began
                 return known
     model = EpisodeModel(g, start, int(budget) - 1, seen)
+    if options.relaxation_start:  # its best path as the first incumbent; its value a bound
+        x, value = _relaxation(model, options.time_limit_s)
+        bound = min(bound, already + int(np.floor(value + 1e-6))) if np.isfinite(value) else bound
+        for walk in peeled_paths(model, x) if x is not None else []:
+            actions = model.actions(walk)
+            walk_seen, landed = fly(g, start, actions, seen)
+            if landed and (known is None or walk_seen > known.seen):
+                known, hint = Mission(actions, walk_seen, bound, "feasible", 0.0), actions
+        if known is not None and known.seen >= bound:
+            return _labelled(known.actions, known.seen, bound, time.perf_counter() - began)
+        left = options.time_limit_s - (time.perf_counter() - began)
+        options = replace(options, time_limit_s=max(left, 1.0))
     start_x = model.hint(hint) if known is not None else None
     run = _highs if options.solver == "highs" else _cp_sat
     answer = run(model, options, start_x)

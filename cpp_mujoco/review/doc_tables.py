@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.util.tables import format_table
 
 
 def _budgets(conditions: dict) -> str:
@@ -254,3 +255,15 @@ def transfer_table(data: dict, source: str) -> str:
         + f". From `{source}`, flown by `{data['command']}`.",
     ]
     return "\n".join(lines)
+
+
+def script_table(data: dict, name: str, source: str) -> str:
+    """Table ``name`` of a script's tables file (``review.results.write_tables``) as the script
+    rendered its cells, with the command that flew it."""
+    table = data[name]
+    command = data.get("command")
+    if command is None:
+        raise ValueError(f"{source} does not say which command flew it")
+    body = format_table(table["rows"], table["columns"], style="markdown")
+    title = table["title"][0].upper() + table["title"][1:]
+    return f"{body}\n\n{title}. From `{source}`, flown by `{command}`."

@@ -249,9 +249,11 @@ class Table:
         return {"title": self.title, "columns": self.columns, "conditions": shared, "rows": rows}
 
 
-def write_tables(path: str | Path, tables: dict[str, Table]) -> Path:
-    """Write tables (name → table) as one JSON file, atomically."""
-    data = {name: table.to_dict() for name, table in tables.items()}
+def write_tables(path: str | Path, tables: dict[str, Table], command: str | None = None) -> Path:
+    """Write tables (name → table) as one JSON file, atomically; ``command``: what flew them."""
+    data: dict = {name: table.to_dict() for name, table in tables.items()}
+    if command is not None:
+        data["command"] = command
     atomic_write_text(path, json.dumps(data, indent=2))
     return Path(path)
 
