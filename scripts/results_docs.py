@@ -276,7 +276,9 @@ def in_page_tables() -> dict[Path, str]:
     if (RESULTS / TRANSFER).is_file() and load(TRANSFER)["results"][0]["conditions"]["budgets"][
         "step"
     ] == 1:  # the full protocol only
-        wind_page.append(("transfer", doc_tables.transfer_table(load(TRANSFER), TRANSFER)))
+        wind_page.append(
+            ("transfer", doc_tables.transfer_table(load(TRANSFER), f"results/{TRANSFER}"))
+        )
     if (RESULTS / ENERGY).is_file():
         wind_page.append(("energy", doc_tables.energy_table(load(ENERGY), f"results/{ENERGY}")))
     if wind_page:

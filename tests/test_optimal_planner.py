@@ -247,14 +247,15 @@ def test_the_command_line_flies_the_optimal_planner_beside_the_others(tmp_path, 
     assert bad.value.code == 2
 
 
-def test_a_known_mission_is_a_point_of_the_model():
+@pytest.mark.parametrize("memory", [1, 2])
+def test_a_known_mission_is_a_point_of_the_model(memory):
     # the warm start must satisfy every row, or the solver drops it
     grid_map = small_map()
     g = build_graph(grid_map)
     cells = np.flatnonzero(grid_map.landing.reshape(-1))
     budgets = np.full(cells.size, 9)
     for cell, actions in zip(cells, beam_missions(grid_map, cells, budgets), strict=True):
-        model = EpisodeModel(g, int(cell), 8, np.zeros(g.num_cells, bool))
+        model = EpisodeModel(g, int(cell), 8, np.zeros(g.num_cells, bool), memory=memory)
         x = model.hint(actions)
         assert x is not None
         ax = model.A @ x
@@ -284,3 +285,19 @@ def test_the_relaxations_paths_are_missions_and_the_start_changes_no_answer():
         plain = solve_episode(g, start, budget, options=SolverOptions(relaxation_start=False))
         read = solve_episode(g, start, budget)
         assert plain.status == read.status == "optimal" and plain.seen == read.seen
+
+
+@pytest.mark.parametrize("budget", [2, 3, 5, 7])
+def test_the_model_with_two_cells_of_memory_finds_what_every_action_sequence_finds(budget):
+    from cpp_mujoco.planners.optimal_solver import _highs
+
+    grid_map = small_map()
+    g = build_graph(grid_map)
+    for row, col in np.argwhere(grid_map.landing):
+        start = int(row * 5 + col)
+        model = EpisodeModel(g, start, budget - 1, np.zeros(25, bool), memory=2)
+        answer = _highs(model, SolverOptions(), None)
+        seen, landed = fly(g, start, model.actions(answer.x), np.zeros(25, bool))
+        best = best_by_every_sequence(grid_map, (row, col), budget)
+        assert answer.status == "optimal" and landed
+        assert seen == round(float(model.objective @ answer.x)) == best
