@@ -83,7 +83,7 @@ def energy(repeats: int) -> None:
     calm and 3..12 m/s from N/E/S/W: results/action_energy.json."""
     from dataclasses import asdict
 
-    from cpp_mujoco.physics.action_energy import KINDS, action_energy_table
+    from cpp_mujoco.physics.action_energy import _OPEN, KINDS, action_energy_table
     from cpp_mujoco.physics.calibration import unit_energy
     from cpp_mujoco.physics.config import PhysicsConfig
 
@@ -91,8 +91,11 @@ def energy(repeats: int) -> None:
     steady = action_energy_table(config)
     gusty = action_energy_table(config, turbulence="moderate", repeats=repeats)
     rows = [
-        {"wind_speed": a.wind_speed, "wind_direction": a.wind_direction,
-         "steady": asdict(a), "gusty": asdict(b)}
+        {"map": _OPEN.label, "map_digest": _OPEN.digest, "backend": "mujoco",
+         "policy": "from the middle cell out and back along each axis, a hover, a landing",
+         "wind_speed": a.wind_speed, "wind_direction": a.wind_direction,
+         "steady": asdict(a), "gusty": asdict(b),
+         "conditions": {"physics_config": asdict(config), "gust_histories": repeats}}
         for a, b in zip(steady, gusty, strict=True)
     ]  # fmt: skip
     write("action_energy.json", {

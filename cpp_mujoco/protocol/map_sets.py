@@ -276,32 +276,23 @@ def evaluate_map_set(
         if backend != "grid":
             raise ValueError("grid_wind is the grid's wind option; MuJoCo flies env_kwargs' wind")
         config = replace(config, wind=grid_wind)
+    physics = {"workers": workers, "env_kwargs": env_kwargs, "engine": engine}
     return evaluate_maps(
         spec.identity(len(maps)), maps, [config] * len(maps), spec.seeds[: len(maps)], policies,
-        budget_step, progress, backend, workers=workers, env_kwargs=env_kwargs, engine=engine,
+        budget_step, progress, backend, physics if backend == "mujoco" else None,
     )  # fmt: skip
 
 
-def evaluate_maps(
-    identity: dict,
-    maps: Sequence[GridMap],
-    configs: Sequence[GridConfig],
-    seeds: Sequence[int],
-    policies: Sequence[tuple[str, Any]],
-    budget_step: int = 1,
-    progress: bool = False,
-    backend: str = "grid",
-    *,
-    workers: int | None = None,
-    env_kwargs: dict | None = None,
-    engine: str = "local",
-) -> MapSetResult:
+def evaluate_maps(identity: dict, maps: Sequence[GridMap], configs: Sequence[GridConfig],
+                  seeds: Sequence[int], policies: Sequence[tuple[str, Any]], budget_step: int = 1,
+                  progress: bool = False, backend: str = "grid",
+                  physics: dict[str, Any] | None = None) -> MapSetResult:  # fmt: skip
     """Every policy over every map with the map's own config (its size class's budgets, every
     ``budget_step``-th): the protocol of :func:`evaluate_map_set` for any list of maps, e.g. a
-    training run's validation pool; ``identity`` says what the maps are, ``seeds`` name them."""
-    physics: dict[str, Any] = {}
-    if backend == "mujoco":
-        physics = {"workers": workers, "env_kwargs": env_kwargs, "engine": engine}
+    training run's validation pool; ``identity`` says what the maps are, ``seeds`` name them;
+    ``physics``: :func:`~cpp_mujoco.protocol.evaluate.evaluate`'s MuJoCo options (``workers``,
+    ``env_kwargs``, ``engine``)."""
+    physics = physics or {}
     budgets: dict[int, list[int]] = {}
     for grid_map, config in zip(maps, configs, strict=True):
         flown = protocol_budgets(config, step=budget_step)
