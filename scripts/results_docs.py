@@ -281,6 +281,10 @@ def in_page_tables() -> dict[Path, str]:
         )
     if (RESULTS / ENERGY).is_file():
         wind_page.append(("energy", doc_tables.energy_table(load(ENERGY), f"results/{ENERGY}")))
+    if (RESULTS / "rated_wind.json").is_file():
+        table = doc_tables.script_table(load("rated_wind.json"), "rated_wind",
+                                        "results/rated_wind.json")  # fmt: skip
+        wind_page.append(("rated-wind", table))
     if wind_page:
         tables[docs / "wind.md"] = wind_page
     sets = [RESULTS / f"map_set_{name}.json" for name in ("heldout16-v1", "heldout32-v1")]

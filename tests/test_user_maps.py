@@ -10,7 +10,7 @@ from PIL import Image
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.cli.main import main
 from cpp_mujoco.map_sets.generator import generate_from_seed
-from cpp_mujoco.maps import MapError, load_map
+from cpp_mujoco.maps import GridMap, MapError, load_map
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.protocol.evaluate import evaluate
 from cpp_mujoco.protocol.policy import MapMismatchError
@@ -58,6 +58,35 @@ def test_a_map_drawn_on_white_says_the_format(tmp_path):
     Image.fromarray(rgb).save(path)
     with pytest.raises(MapError, match="pixels are white; a map is drawn on black"):
         load_map(path)
+    read = load_map(path, white_background=True)  # white is empty then
+    assert read.counts() == {"landing": 1, "target": 1, "nfz": 0}
+
+
+def test_maps_import_writes_a_map_drawn_elsewhere_in_the_map_format(tmp_path, capsys):
+    # B drawn at 10 pixels a cell on white: imported, it is B, cell for cell
+    rgb = load_map("B").to_rgb()
+    rgb[(rgb == 0).all(axis=-1)] = 255
+    Image.fromarray(np.kron(rgb, np.ones((10, 10, 1), dtype=rgb.dtype))).save(tmp_path / "b.png")
+    args = ["maps", "import", str(tmp_path / "b.png"), "--out", str(tmp_path / "B.png")]
+    assert main([*args, "--cell-pixels", "10", "--white-background"]) == 0
+    assert load_map(tmp_path / "B.png").digest == load_map("B").digest
+    assert "16x16 cells" in capsys.readouterr().out
+    # an existing map is never replaced unless asked; the source is read before anything
+    before = (tmp_path / "B.png").read_bytes()
+    assert main([*args, "--cell-pixels", "10", "--white-background"]) == 2
+    assert "exists; --overwrite replaces it" in capsys.readouterr().err
+    assert main([*args, "--cell-pixels", "10", "--overwrite"]) == 2  # on white, unsaid
+    assert (tmp_path / "B.png").read_bytes() == before
+    # ASCII text
+    (tmp_path / "t.txt").write_text("L.T\n.NY\n")
+    assert main(["maps", "import", str(tmp_path / "t.txt"), "--out", str(tmp_path / "t.png")]) == 0
+    assert load_map(tmp_path / "t.png").digest == GridMap.from_ascii(["L.T", ".NY"]).digest
+    (tmp_path / "bad.txt").write_text("L.T\n.QY\n")
+    assert (
+        main(["maps", "import", str(tmp_path / "bad.txt"), "--out", str(tmp_path / "x.png")]) == 2
+    )
+    assert "unknown map character 'Q' at (row 1, col 1)" in capsys.readouterr().err
+    assert not (tmp_path / "x.png").exists()
 
 
 def test_a_single_map_flies_its_size_class_budgets():

@@ -15,7 +15,7 @@ from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.map_sets.generator import GeneratorConfig, generate_from_seed
 from cpp_mujoco.map_sets.sets import HELDOUT_SEEDS, load_map_set, map_set_spec
 from cpp_mujoco.map_sets.size_classes import budget_range
-from cpp_mujoco.maps import MAX_SIDE, bundled_maps, load_map
+from cpp_mujoco.maps import MAX_SIDE, GridMap, MapError, bundled_maps, load_map
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.protocol.map_sets import evaluate_map_set
 from cpp_mujoco.review.map_set_figures import load_map_set_result, write_map_set_figures
@@ -180,3 +180,24 @@ def cmd_draw(args) -> None:
             }
         )
     print(format_table(rows, ["map", "size", "landing", "target", "nfz", "figure"]))
+
+
+def cmd_import(args) -> None:
+    """``maps import``: a map drawn elsewhere, written in the map format (one pixel per cell,
+    black empty) so that every command reads it as it is."""
+    source, out = Path(args.source), Path(args.out)
+    if out.exists() and not args.overwrite:
+        raise ValueError(f"{out} exists; --overwrite replaces it")
+    if source.suffix.lower() == ".txt":
+        try:
+            text = source.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise MapError(f"{source} cannot be read as text ({exc})") from None
+        grid_map = GridMap.from_ascii(text, name=out.stem)
+    else:
+        grid_map = load_map(source, args.cell_pixels, white_background=args.white_background)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    grid_map.save(out)
+    saved = load_map(out)  # read back as every command will
+    counts = ", ".join(f"{k} {v}" for k, v in saved.counts().items())
+    print(f"{out}: {saved.shape[0]}x{saved.shape[1]} cells ({counts}), digest {saved.digest}")

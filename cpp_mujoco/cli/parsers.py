@@ -77,12 +77,14 @@ def add_map_set_options(p) -> None:
 
 def add_maps(sub) -> None:
     p = sub.add_parser(
-        "maps", help="draw maps (maps draw, the default) or generate random ones (maps generate)"
-    )
+        "maps", help="draw maps (maps draw, the default), generate random ones (maps generate) or "
+        "import one drawn elsewhere (maps import)",
+    )  # fmt: skip
     p.set_defaults(func="cpp_mujoco.cli.maps:cmd_draw")
     kinds = p.add_subparsers(
-        dest="maps_command", metavar="{draw,generate}", help="draw (the default) or generate"
-    )
+        dest="maps_command", metavar="{draw,generate,import}",
+        help="draw (the default), generate or import",
+    )  # fmt: skip
     draw = kinds.add_parser("draw", help="draw maps as the paper's colour figure, list cell counts")
     add_maps_option(draw)
     add_cell_pixels_option(draw)
@@ -91,6 +93,17 @@ def add_maps(sub) -> None:
     generate = kinds.add_parser("generate", help="write random maps in the paper's style as PNGs")
     add_generate_options(generate)
     generate.set_defaults(func="cpp_mujoco.cli.maps:cmd_generate")
+    imported = kinds.add_parser(
+        "import", help="write a map drawn elsewhere (a PNG at several pixels per cell or on white, "
+        "or ASCII text) in the map format: one pixel per cell, black empty",
+    )  # fmt: skip
+    imported.add_argument("source", help="a PNG, or a .txt of rows ('.' empty, L, T, N, Y, G)")
+    imported.add_argument("--out", required=True, help="the map PNG to write")
+    add_cell_pixels_option(imported)
+    imported.add_argument("--white-background", action="store_true",
+                          help="white pixels are empty cells (a map drawn on white)")  # fmt: skip
+    imported.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    imported.set_defaults(func="cpp_mujoco.cli.maps:cmd_import")
 
 
 def add_evaluate(sub) -> None:

@@ -153,7 +153,7 @@ class GridMap:
         unknown = ~np.isin(grid, list(".LTNYG"))
         if unknown.any():
             r, c = _first_cell(unknown)
-            raise MapError(f"unknown map character {grid[r, c]!r} at (row {r}, col {c})")
+            raise MapError(f"unknown map character {str(grid[r, c])!r} at (row {r}, col {c})")
         return cls(
             landing=np.isin(grid, ["L", "G"]),
             target=np.isin(grid, ["T", "Y", "G"]),

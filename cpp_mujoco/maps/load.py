@@ -35,9 +35,14 @@ def cell_block(layers: np.ndarray) -> int:
     return 1
 
 
-def _cells(rgb: np.ndarray, path: Path, cell_pixels: int | None) -> np.ndarray:
-    """The (H, W, 3) boolean layers of the image's cells (R no-fly, G target, B landing)."""
+def _cells(
+    rgb: np.ndarray, path: Path, cell_pixels: int | None, white_background: bool = False
+) -> np.ndarray:
+    """The (H, W, 3) boolean layers of the image's cells (R no-fly, G target, B landing);
+    ``white_background``: white pixels are empty cells (no cell can be all three)."""
     layers = rgb > 0
+    if white_background:
+        layers[layers.all(axis=-1)] = False
     h, w = layers.shape[:2]
     white = float(layers.all(axis=-1).mean())
     if white > WHITE_SHARE:
@@ -70,22 +75,26 @@ def _cells(rgb: np.ndarray, path: Path, cell_pixels: int | None) -> np.ndarray:
     return blocks[:, 0, :, 0]
 
 
-def load_map(source: str | os.PathLike | GridMap, cell_pixels: int | None = None) -> GridMap:
+def load_map(
+    source: str | os.PathLike | GridMap, cell_pixels: int | None = None,
+    white_background: bool = False,
+) -> GridMap:  # fmt: skip
     """A bundled map by name (``"A"``), a PNG path, or a ``GridMap`` passed through; a name or
     path with ``~<image>`` (``"C~rot180"``, ``"site.png~mirror"``) is that map turned or mirrored
     (:mod:`cpp_mujoco.maps.symmetry`): the same mission in another orientation.
     ``cell_pixels``: the image's pixels per cell side (None: one, refusing an image obviously
-    drawn at several)."""
+    drawn at several); ``white_background``: white pixels are empty (a map drawn on white)."""
     if isinstance(source, GridMap):
         return source
     base, sep, image = os.fspath(source).rpartition("~")
     if sep and base and not Path(source).exists():
-        return turn_map(load_map(base, cell_pixels), symmetry_named(image))
+        turned = load_map(base, cell_pixels, white_background)
+        return turn_map(turned, symmetry_named(image))
     where = resolve_named_file(
         source, bundled=bundled_dir("maps"), suffix=".png", kind="map", error=MapError
     )
     path = where.path
-    layers = _cells(read_png(path), path, cell_pixels)
+    layers = _cells(read_png(path), path, cell_pixels, white_background)
     try:
         return GridMap(
             landing=layers[..., 2],
