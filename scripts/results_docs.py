@@ -287,6 +287,11 @@ def in_page_tables() -> dict[Path, str]:
         wind_page.append(("rated-wind", table))
     if wind_page:
         tables[docs / "wind.md"] = wind_page
+    if (RESULTS / "wind_agents_grid.json").is_file():
+        table = doc_tables.wind_agents_table(
+            load("wind_agents_grid.json"), "results/wind_agents_grid.json"
+        )
+        tables[docs / "agent.md"].append(("wind-agents", table))
     sets = [RESULTS / f"map_set_{name}.json" for name in ("heldout16-v1", "heldout32-v1")]
     if all(path.is_file() for path in sets):
         table = doc_tables.held_out_table(

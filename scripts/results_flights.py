@@ -4,6 +4,7 @@
     python scripts/results_flights.py transfer --budget-step 1    # results/transfer_abc.json
     python scripts/results_flights.py map-set --map-set heldout32-v1   # results/map_set_*.json
     python scripts/results_flights.py energy                      # results/action_energy.json
+    python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
 
 then ``python scripts/results_docs.py`` rewrites the pages from them. Each file records the
 command that flew it; every result in it names its map (and digest), policy, backend and
@@ -105,11 +106,37 @@ def energy(repeats: int) -> None:
     })  # fmt: skip
 
 
+def wind_agents() -> None:
+    """The paper agents and the wind-robust agents on the grid, calm and in the grid's 9 m/s wind
+    (every episode 9 m/s from N/E/S/W, moderate gust costs), beside the safe greedy wind planner
+    (every 5th budget): results/wind_agents_grid.json."""
+    from dataclasses import replace
+
+    from cpp_mujoco.agent import load_agent
+    from cpp_mujoco.grid.wind import GridWind
+    from cpp_mujoco.map_sets.size_classes import size_config
+    from cpp_mujoco.planners import make_planner
+    from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
+
+    calm = size_config(16)
+    windy = replace(calm, wind=GridWind(min_speed=9.0, max_speed=9.0, calm_fraction=0.0))
+    rows = []
+    for name in ("A", "B", "C"):
+        for policy in (load_agent(name), load_agent(f"{name}-wind")):
+            rows += [evaluate(policy, name, config=c).summary() for c in (calm, windy)]
+        planner = make_planner("safe-greedy-wind")
+        budgets = protocol_budgets(windy, step=5)
+        rows.append(evaluate(planner, name, config=windy, budgets=budgets).summary())
+        print(f"{name}: " + ", ".join(f"{r['landing_ratio']:.2%} / {r['coverage_ratio']:.2%}"
+                                      for r in rows[-5:]))  # fmt: skip
+    write("wind_agents_grid.json", {"command": f"{COMMAND} wind-agents", "results": rows})
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    p.add_argument("family", choices=["planners", "transfer", "map-set", "energy"])
+    p.add_argument("family", choices=["planners", "transfer", "map-set", "energy", "wind-agents"])
     p.add_argument("--map-set", default="heldout16-v1", help="map-set: which set")
     p.add_argument("--workers", type=int, default=2, help="transfer: MuJoCo worker processes")
     p.add_argument("--budget-step", type=int, default=10, help="transfer: every n-th budget")
@@ -121,6 +148,8 @@ def main(argv=None) -> int:
         transfer(args.workers, args.budget_step)
     elif args.family == "map-set":
         map_set(args.map_set)
+    elif args.family == "wind-agents":
+        wind_agents()
     else:
         energy(args.repeats)
     print("now: python scripts/results_docs.py (the pages from the files)")

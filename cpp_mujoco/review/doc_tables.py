@@ -271,3 +271,32 @@ def script_table(data: dict, name: str, source: str) -> str:
     body = format_table(table["rows"], table["columns"], style="markdown")
     title = table["title"][0].upper() + table["title"][1:]
     return f"{body}\n\n{title}. From `{source}`, flown by `{command}`."
+
+
+def wind_agents_table(data: dict, source: str) -> str:
+    """Per map, landing / coverage on the grid of the paper agent and the wind-robust agent in
+    calm air and in the grid's wind, and of the safe greedy wind planner in that wind."""
+    cells: dict[str, dict[str, str]] = {}
+    heads: dict[str, str] = {}
+    for r in data["results"]:
+        wind = r["conditions"]["grid_config"]["wind"]
+        kind = "wind agent" if r["policy"].endswith("-wind") and r["policy"].startswith("ddqn") \
+            else "paper agent" if r["policy"].startswith("ddqn") else r["policy"]  # fmt: skip
+        where = "calm" if wind is None else f"{wind['max_speed']:g} m/s"
+        step = r["conditions"]["budgets"]["step"]
+        head = f"{kind}, {where}" + ("" if step == 1 else f" (every {step}th budget)")
+        heads[head] = head
+        cells.setdefault(r["map"], {})[head] = (
+            f"{r['landing_ratio']:.2%} / {r['coverage_ratio']:.2%}"
+        )
+    order = sorted(heads, key=lambda h: ("m/s" in h, "safe" in h, "wind agent" in h))
+    lines = ["| map | " + " | ".join(order) + " |", "|---|" + "---|" * len(order)]
+    for m, row in cells.items():
+        lines.append(f"| {m} | " + " | ".join(row.get(h, "—") for h in order) + " |")
+    lines += [
+        "",
+        "Landing / coverage, the grid, every landing cell × budgets 25..75; the wind: every "
+        "episode 9 m/s from N, E, S or W with the grid's gust costs. From "
+        f"`{source}`, flown by `{data['command']}`.",
+    ]
+    return "\n".join(lines)
