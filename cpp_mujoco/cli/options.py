@@ -84,6 +84,15 @@ def check_agent_file(spec: str) -> None:
         raise ValueError(f"--agent {spec} is a folder; give a checkpoint file{hint}")
 
 
+def add_budget_step_option(p, default: int = 1, help: str | None = None) -> None:
+    """``--budget-step``: every n-th budget of each map's size class, the largest kept."""
+    p.add_argument(
+        "--budget-step", type=int_at_least(1), default=default,
+        help=help or "every n-th budget of each map's size class (16x16: 25..75, 32x32: "
+        "50..150), the largest always included (default: %(default)s, all)",
+    )  # fmt: skip
+
+
 def add_cell_pixels_option(p) -> None:
     p.add_argument(
         "--cell-pixels", type=int_at_least(1), metavar="N",

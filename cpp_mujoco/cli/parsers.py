@@ -14,6 +14,7 @@ from __future__ import annotations
 from cpp_mujoco.cli.options import (
     PLANNER_NAMES,
     add_any_map_option,
+    add_budget_step_option,
     add_cell_pixels_option,
     add_progress_option,
     add_rule_option,
@@ -126,11 +127,7 @@ def add_evaluate(sub) -> None:
         "--backend", default="grid", choices=["grid", "mujoco"],
         help="simulate on the grid or fly in MuJoCo (default: %(default)s)",
     )  # fmt: skip
-    p.add_argument(
-        "--budget-step", type=int_at_least(1), default=1,
-        help="every n-th budget of each map's size class (16x16: 25..75, 32x32: 50..150), the "
-        "largest always included (default: %(default)s, all)",
-    )  # fmt: skip
+    add_budget_step_option(p)
     add_workers_option(p)
     p.add_argument(
         "--ray", action="store_true",
@@ -189,11 +186,7 @@ def add_optimum(sub) -> None:
         "optimum", help="solve the protocol's best missions (exact planner) into the cache"
     )
     add_maps_option(p)
-    p.add_argument(
-        "--budget-step", type=int_at_least(1), default=1,
-        help="every n-th budget of each map's size class (16x16: 25..75), the largest always "
-        "included (default: %(default)s)",
-    )  # fmt: skip
+    add_budget_step_option(p)
     p.add_argument(
         "--first", type=int_at_least(1), help="only the protocol's first N episodes of each map"
     )
@@ -208,10 +201,9 @@ def add_demo(sub) -> None:
     )
     add_maps_option(p)
     p.add_argument("--out", default="out/demo", help="folder for results (default: %(default)s)")
-    p.add_argument(
-        "--budget-step", type=int_at_least(1), default=10,
-        help="MuJoCo protocol: every n-th budget of 25..75, 1 = all (default: %(default)s)",
-    )  # fmt: skip
+    add_budget_step_option(
+        p, 10, "MuJoCo protocol: every n-th budget of 25..75, 1 = all (default: %(default)s)"
+    )
     add_workers_option(p)
     add_progress_option(p)
     p.set_defaults(func="cpp_mujoco.cli.demo:cmd_demo")

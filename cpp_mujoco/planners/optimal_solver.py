@@ -103,19 +103,28 @@ def _quiet(make):
         os.close(null)
 
 
-def _relaxation(model: EpisodeModel, time_limit_s: float) -> tuple[np.ndarray | None, float]:
-    """(the linear relaxation's solution or None, its value: an upper bound; inf if unsolved)."""
+def _highs_model(model: EpisodeModel, time_limit_s: float, threads: int, integer: bool):
+    """A quiet HiGHS holding ``model`` (maximized; HiGHS minimizes), as integers or relaxed."""
     h = _quiet(highspy.Highs)
     h.setOptionValue("output_flag", False)
     h.setOptionValue("time_limit", float(time_limit_s))
-    h.setOptionValue("threads", 1)
-    h.setOptionValue("solver", "ipm")  # measured: 20 s where the dual simplex took minutes
+    h.setOptionValue("threads", int(threads))
     n, a, inf = model.num_vars, model.A, highspy.kHighsInf
+    cols = np.arange(n, dtype=np.int32)
     h.addVars(n, np.zeros(n), model.upper)
-    h.changeColsCost(n, np.arange(n, dtype=np.int32), -model.objective)
+    h.changeColsCost(n, cols, -model.objective)
+    if integer:
+        h.changeColsIntegrality(n, cols, np.full(n, highspy.HighsVarType.kInteger))
     h.addRows(a.shape[0], np.where(np.isfinite(model.lo), model.lo, -inf),
               np.where(np.isfinite(model.hi), model.hi, inf), a.nnz,
               a.indptr[:-1].astype(np.int32), a.indices.astype(np.int32), a.data)  # fmt: skip
+    return h
+
+
+def _relaxation(model: EpisodeModel, time_limit_s: float) -> tuple[np.ndarray | None, float]:
+    """(the linear relaxation's solution or None, its value: an upper bound; inf if unsolved)."""
+    h = _highs_model(model, time_limit_s, threads=1, integer=False)
+    h.setOptionValue("solver", "ipm")  # measured: 20 s where the dual simplex took minutes
     h.run()
     if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
         return None, np.inf
@@ -123,22 +132,10 @@ def _relaxation(model: EpisodeModel, time_limit_s: float) -> tuple[np.ndarray | 
 
 
 def _highs(model: EpisodeModel, options: SolverOptions, hint: np.ndarray | None) -> _Answer:
-    h = _quiet(highspy.Highs)
-    h.setOptionValue("output_flag", False)
-    h.setOptionValue("time_limit", float(options.time_limit_s))
-    h.setOptionValue("threads", int(options.workers))
+    h = _highs_model(model, options.time_limit_s, options.workers, integer=True)
     h.setOptionValue("random_seed", int(options.seed))
     h.setOptionValue("mip_rel_gap", 0.0)
     h.setOptionValue("mip_abs_gap", 1.0 - 1e-6)  # the count is whole: below one target, proven
-    n, a = model.num_vars, model.A
-    inf = highspy.kHighsInf
-    h.addVars(n, np.zeros(n), model.upper)
-    h.changeColsCost(n, np.arange(n, dtype=np.int32), -model.objective)  # HiGHS minimizes
-    h.changeColsIntegrality(n, np.arange(n, dtype=np.int32),
-                            np.full(n, highspy.HighsVarType.kInteger))  # fmt: skip
-    h.addRows(a.shape[0], np.where(np.isfinite(model.lo), model.lo, -inf),
-              np.where(np.isfinite(model.hi), model.hi, inf), a.nnz,
-              a.indptr[:-1].astype(np.int32), a.indices.astype(np.int32), a.data)  # fmt: skip
     if hint is not None:
         start = highspy.HighsSolution()
         start.col_value = hint.tolist()

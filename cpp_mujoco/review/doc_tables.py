@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.review.optimum_table import policy_column
 from cpp_mujoco.util.tables import format_table
 
 
@@ -67,18 +68,10 @@ def planners_table(data: dict, source: str) -> str:
     return "\n".join(lines)
 
 
-def _policy(name: str) -> str:
-    """A result's policy by what it is: the general agent (``ddqn[general]``), a per-map agent
-    (``ddqn-A``, ``ddqn[A]``), or a planner."""
-    if name in ("general", "ddqn[general]"):
-        return "general"
-    return "ddqn" if name.startswith("ddqn") else name
-
-
 def held_out_table(sets: list[dict], abc: dict, sources: list[str]) -> str:
     """The general agent beside the planners on each held-out set (means over the maps) and on
     A, B and C (with the per-map agents), landing / coverage."""
-    by_set = [{_policy(s["policy"]): s for s in data["policies"]} for data in sets]
+    by_set = [{policy_column(s["policy"]): s for s in data["policies"]} for data in sets]
     abc_rows = abc["results"]
     maps = list(dict.fromkeys(r["map"] for r in abc_rows))
     head = [f"{d['map_set']['name']} ({d['map_set']['evaluated']} maps)" for d in sets]
@@ -95,7 +88,7 @@ def held_out_table(sets: list[dict], abc: dict, sources: list[str]) -> str:
             else "—"
             for s in by_set
         ]
-        rows = [r for r in abc_rows if _policy(r["policy"]) == policy]
+        rows = [r for r in abc_rows if policy_column(r["policy"]) == policy]
         land = np.mean([r["landing_ratio"] for r in rows])
         cover = ", ".join(f"{r['coverage_ratio']:.2%}" for r in rows)
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {land:.2%} / {cover} |")
@@ -171,8 +164,7 @@ def agents_table(metrics: dict[str, dict], abc: dict, source: str) -> str:
     """Each bundled per-map agent: its training (updates, episodes and wall time to the kept
     weights, from the agent file), its full-protocol landing and coverage beside the paper's
     landing ratio, the planners' coverage and the best missions'."""
-    by = {(r["map"], r["policy"].split("-")[0] if r["policy"].startswith("ddqn") else r["policy"]):
-          r for r in abc["results"]}  # fmt: skip
+    by = {(r["map"], policy_column(r["policy"])): r for r in abc["results"]}
     lines = [
         "| map | updates | episodes | wall time | landing | coverage | paper's landing "
         "| safe-greedy coverage | beam-search coverage | best missions |",
@@ -280,8 +272,9 @@ def wind_agents_table(data: dict, source: str) -> str:
     heads: dict[str, str] = {}
     for r in data["results"]:
         wind = r["conditions"]["grid_config"]["wind"]
-        kind = "wind agent" if r["policy"].endswith("-wind") and r["policy"].startswith("ddqn") \
-            else "paper agent" if r["policy"].startswith("ddqn") else r["policy"]  # fmt: skip
+        policy = r["policy"]
+        agent = "wind agent" if policy.endswith("-wind") else "paper agent"
+        kind = agent if policy.startswith("ddqn") else policy
         where = "calm" if wind is None else f"{wind['max_speed']:g} m/s"
         step = r["conditions"]["budgets"]["step"]
         head = f"{kind}, {where}" + ("" if step == 1 else f" (every {step}th budget)")

@@ -56,7 +56,10 @@ def replace_between(text: str, begin: str, end: str, body: str, where: object = 
 
 
 def policy_column(policy: str) -> str:
-    """A result's policy as a column name: a per-map agent (``ddqn-A``) is ``ddqn``."""
+    """A result's policy by what it is: the general agent (``general``, ``ddqn[general]``), a
+    per-map agent (``ddqn-A``, ``ddqn[A]``: ``ddqn``), or a planner."""
+    if policy in ("general", "ddqn[general]"):
+        return "general"
     return "ddqn" if policy.startswith("ddqn") else policy
 
 
