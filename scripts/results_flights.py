@@ -2,6 +2,8 @@
 
     python scripts/results_flights.py planners                    # results/planners_abc.json
     python scripts/results_flights.py transfer --budget-step 1    # results/transfer_abc.json
+    python scripts/results_flights.py transfer --budget-step 1 --wind-agents
+                                                      # results/transfer_abc_wind.json
     python scripts/results_flights.py map-set --map-set heldout32-v1   # results/map_set_*.json
     python scripts/results_flights.py energy                      # results/action_energy.json
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
@@ -30,23 +32,26 @@ def write(name: str, data: dict) -> None:
     print(f"wrote results/{name}")
 
 
-def transfer(workers: int, budget_step: int) -> None:
-    """The bundled per-map agents on A, B and C, on the grid and flown unchanged in calm MuJoCo
-    air over the same episodes: results/transfer_abc.json."""
+def transfer(workers: int, budget_step: int, wind_agents: bool = False) -> None:
+    """The bundled per-map agents on A, B and C (the wind-robust ones with ``wind_agents``), on
+    the grid and flown unchanged in calm MuJoCo air over the same episodes:
+    results/transfer_abc.json (results/transfer_abc_wind.json)."""
     from cpp_mujoco.agent import load_agent
     from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 
     budgets = protocol_budgets(step=budget_step)
     rows = []
+    suffix = "-wind" if wind_agents else ""
     for name in ("A", "B", "C"):
-        agent = load_agent(name)
+        agent = load_agent(name + suffix)
         for backend in ("grid", "mujoco"):
             kwargs = {"workers": workers} if backend == "mujoco" else {}
             result = evaluate(agent, name, backend=backend, budgets=budgets, **kwargs)
             rows.append(result.summary())
             print(f"{name} {backend}: {result.landing_ratio:.2%} / {result.coverage_ratio:.2%}")
     command = f"{COMMAND} transfer --budget-step {budget_step}"
-    write("transfer_abc.json", {"command": command, "results": rows})
+    command += " --wind-agents" if wind_agents else ""
+    write(f"transfer_abc{suffix.replace('-', '_')}.json", {"command": command, "results": rows})
 
 
 def map_set(name: str) -> None:
@@ -140,12 +145,13 @@ def main(argv=None) -> int:
     p.add_argument("--map-set", default="heldout16-v1", help="map-set: which set")
     p.add_argument("--workers", type=int, default=2, help="transfer: MuJoCo worker processes")
     p.add_argument("--budget-step", type=int, default=10, help="transfer: every n-th budget")
+    p.add_argument("--wind-agents", action="store_true", help="transfer: the wind-robust agents")
     p.add_argument("--repeats", type=int, default=5, help="energy: gust histories per row")
     args = p.parse_args(argv)
     if args.family == "planners":
         planners()
     elif args.family == "transfer":
-        transfer(args.workers, args.budget_step)
+        transfer(args.workers, args.budget_step, args.wind_agents)
     elif args.family == "map-set":
         map_set(args.map_set)
     elif args.family == "wind-agents":

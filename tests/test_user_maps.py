@@ -59,7 +59,7 @@ def test_a_map_drawn_on_white_says_the_format(tmp_path):
     with pytest.raises(MapError, match="pixels are white; a map is drawn on black"):
         load_map(path)
     read = load_map(path, white_background=True)  # white is empty then
-    assert read.counts() == {"landing": 1, "target": 1, "nfz": 0}
+    assert read.counts() == {"landing": 1, "target": 1, "nfz": 0, "obstacle": 0}
 
 
 def test_maps_import_writes_a_map_drawn_elsewhere_in_the_map_format(tmp_path, capsys):

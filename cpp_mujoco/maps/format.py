@@ -1,7 +1,10 @@
-"""Grid maps: three boolean layers (landing, target, no-fly) read from PNG files.
+"""Grid maps: boolean layers (landing, target, no-fly, and obstacle) read from PNG files.
 
 PNG format, one pixel per cell, a channel > 0 means set: R = no-fly, G = target, B = landing
-(the paper's colours; yellow = target + no-fly). Row 0 is the north edge.
+(the paper's colours; yellow = target + no-fly). Row 0 is the north edge. An obstacle (a cell
+that blocks the camera's line of sight) is a pixel whose alpha is below 255: with red it is a
+building (no-fly too: blocks flight and view), without red a low obstacle (flyable, blocks
+view). An RGB file, or an RGBA file that is opaque everywhere, has no obstacles.
 """
 
 from __future__ import annotations
@@ -26,7 +29,8 @@ from cpp_mujoco.util.resources import bundled_dir
 # refused at load rather than risk running out.
 MAX_SIDE = 256
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-LAYERS = ("landing", "target", "nfz")
+LAYERS = ("landing", "target", "nfz")  # the observation's map channels, in order
+OBSTACLE_ALPHA = 128  # the alpha an obstacle is written with (anything below 255 reads as one)
 
 
 class MapError(ValueError):
@@ -52,7 +56,8 @@ class GridMap:
     ``name`` is the bundled name or the file's stem; ``source`` the file it was read from ("" if
     built in memory); ``bundled`` whether it is one of the package's maps (only those carry the
     paper's figures). ``label`` names it in results and file names without ambiguity, and
-    ``digest`` fingerprints its cells.
+    ``digest`` fingerprints its cells. ``obstacle`` (None: none) marks the cells that block the
+    camera's line of sight (:mod:`cpp_mujoco.grid.occlusion`); it is never a target or landing.
     """
 
     landing: np.ndarray
@@ -61,10 +66,13 @@ class GridMap:
     name: str = "custom"
     source: str = ""
     bundled: bool = False
+    obstacle: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        if self.obstacle is None:
+            object.__setattr__(self, "obstacle", np.zeros(np.shape(self.landing), dtype=bool))
         layers = {}
-        for layer in LAYERS:
+        for layer in (*LAYERS, "obstacle"):
             value = np.asarray(getattr(self, layer))
             if value.ndim != 2:
                 raise MapError(f"layer {layer!r} must be 2-D, got shape {value.shape}")
@@ -84,6 +92,14 @@ class GridMap:
                 f"landing and no-fly overlap in {int(both.sum())} cell(s), "
                 f"first at (row {r}, col {c})"
             )
+        for layer, what in (("landing", "landing"), ("target", "target")):
+            under = self.obstacle & getattr(self, layer)
+            if under.any():
+                r, c = _first_cell(under)
+                raise MapError(
+                    f"{int(under.sum())} {what} cell(s) under an obstacle, first at (row {r}, "
+                    f"col {c}); an obstacle cell is neither {what} nor seen"
+                )
         if not self.landing.any():
             raise MapError("map has no landing cell (blue channel)")
         if not self.target.any():
@@ -95,10 +111,18 @@ class GridMap:
 
     @cached_property
     def digest(self) -> str:
-        """The first 12 hex digits of the SHA-256 of the shape and the three layers."""
+        """The first 12 hex digits of the SHA-256 of the shape and the layers (the obstacle layer
+        only where the map has obstacles: a map without keeps its digest)."""
         h = hashlib.sha256(repr(self.shape).encode())
         h.update(np.packbits(self.layers).tobytes())
+        if self.has_obstacles:
+            h.update(b"obstacle")
+            h.update(np.packbits(self.obstacle).tobytes())
         return h.hexdigest()[:12]
+
+    @cached_property
+    def has_obstacles(self) -> bool:
+        return bool(self.obstacle.any())
 
     @cached_property
     def label(self) -> str:
@@ -129,36 +153,46 @@ class GridMap:
         return np.stack([self.landing, self.target, self.nfz])
 
     def counts(self) -> dict[str, int]:
-        return {layer: int(getattr(self, layer).sum()) for layer in LAYERS}
+        return {layer: int(getattr(self, layer).sum()) for layer in (*LAYERS, "obstacle")}
 
     def to_rgb(self) -> np.ndarray:
-        """(H, W, 3) uint8 image in the file format."""
+        """(H, W, 3) uint8 image of the three colour layers (obstacles are the file's alpha)."""
         return (np.stack([self.nfz, self.target, self.landing], axis=-1) * 255).astype(np.uint8)
+
+    def to_image(self) -> np.ndarray:
+        """The file's pixels: (H, W, 3) RGB, or (H, W, 4) RGBA where the map has obstacles."""
+        rgb = self.to_rgb()
+        if not self.has_obstacles:
+            return rgb
+        alpha = np.where(self.obstacle, OBSTACLE_ALPHA, 255).astype(np.uint8)
+        return np.concatenate([rgb, alpha[..., None]], axis=-1)
 
     def save(self, path: str | os.PathLike) -> None:
         """Write as PNG atomically (a crash never leaves a half-written map)."""
         with atomic_path(path) as tmp:
-            Image.fromarray(self.to_rgb()).save(tmp, format="PNG")  # (H, W, 3) uint8 is RGB
+            Image.fromarray(self.to_image()).save(tmp, format="PNG")  # RGB or RGBA by shape
 
     @classmethod
     def from_ascii(cls, rows: list[str] | str, name: str = "custom") -> GridMap:
         """Build from text: '.' empty, 'L' landing, 'T' target, 'N' no-fly, 'Y' target+no-fly,
-        'G' landing+target. Handy for tests and for designing maps."""
+        'G' landing+target, 'O' a low obstacle, 'B' a building (obstacle + no-fly). Handy for
+        tests and for designing maps."""
         if isinstance(rows, str):
             rows = [r.strip() for r in rows.strip().splitlines() if r.strip()]
         widths = {len(r) for r in rows}
         if len(widths) != 1:
             raise MapError(f"ASCII map rows have different lengths: {sorted(widths)}")
         grid = np.array([list(r) for r in rows])
-        unknown = ~np.isin(grid, list(".LTNYG"))
+        unknown = ~np.isin(grid, list(".LTNYGOB"))
         if unknown.any():
             r, c = _first_cell(unknown)
             raise MapError(f"unknown map character {str(grid[r, c])!r} at (row {r}, col {c})")
         return cls(
             landing=np.isin(grid, ["L", "G"]),
             target=np.isin(grid, ["T", "Y", "G"]),
-            nfz=np.isin(grid, ["N", "Y"]),
+            nfz=np.isin(grid, ["N", "Y", "B"]),
             name=name,
+            obstacle=np.isin(grid, ["O", "B"]),
         )
 
 
@@ -177,8 +211,9 @@ def _png_header_size(path: Path) -> tuple[int, int] | None:
 
 
 def read_png(path: Path) -> np.ndarray:
-    """The image's RGB pixels; every failure (a size over the limit checked from the header
-    before anything is decoded, a decompression bomb, a broken file) is a one-line MapError."""
+    """The image's RGBA pixels (alpha 255 where the file has none); every failure (a size over
+    the limit checked from the header before anything is decoded, a decompression bomb, a broken
+    file) is a one-line MapError."""
     try:
         size = _png_header_size(path)
         if size is not None:
@@ -188,7 +223,7 @@ def read_png(path: Path) -> np.ndarray:
             _check_size(h, w, f"{path}: image")
             if img.mode not in ("RGB", "RGBA"):
                 raise MapError(f"{path}: image mode {img.mode!r}; a map must be RGB or RGBA")
-            return np.asarray(img.convert("RGB"))
+            return np.asarray(img.convert("RGBA"))
     except MapError:
         raise
     except FileNotFoundError as e:

@@ -1,9 +1,10 @@
 """Where a map comes from: a bundled name, a PNG file, or either turned or mirrored.
 
 A PNG holds one pixel per cell (R no-fly, G target, B landing, black empty; any channel > 0
-counts). An image drawn at several pixels per cell is read with ``cell_pixels``; without it, an
-image that is obviously such a drawing (every block of :data:`OBVIOUS_CELL_PIXELS` or more pixels
-one colour) is refused with the option to use, rather than read as a map that many times larger.
+counts; alpha below 255 an obstacle). An image drawn at several pixels per cell is read with
+``cell_pixels``; without it, an image that is obviously such a drawing (every block of
+:data:`OBVIOUS_CELL_PIXELS` or more pixels one colour) is refused with the option to use, rather
+than read as a map that many times larger.
 """
 
 from __future__ import annotations
@@ -36,15 +37,17 @@ def cell_block(layers: np.ndarray) -> int:
 
 
 def _cells(
-    rgb: np.ndarray, path: Path, cell_pixels: int | None, white_background: bool = False
+    rgba: np.ndarray, path: Path, cell_pixels: int | None, white_background: bool = False
 ) -> np.ndarray:
-    """The (H, W, 3) boolean layers of the image's cells (R no-fly, G target, B landing);
-    ``white_background``: white pixels are empty cells (no cell can be all three)."""
-    layers = rgb > 0
+    """The (H, W, 4) boolean layers of the image's cells (R no-fly, G target, B landing, alpha
+    below 255 obstacle); ``white_background``: white pixels are empty cells (no cell can be all
+    three)."""
+    layers = np.concatenate([rgba[..., :3] > 0, rgba[..., 3:] < 255], axis=-1)
+    colour = layers[..., :3]
     if white_background:
-        layers[layers.all(axis=-1)] = False
+        colour[colour.all(axis=-1)] = False
     h, w = layers.shape[:2]
-    white = float(layers.all(axis=-1).mean())
+    white = float(colour.all(axis=-1).mean())
     if white > WHITE_SHARE:
         raise MapError(
             f"{path}: {white:.0%} of the pixels are white; a map is drawn on black (black = "
@@ -64,7 +67,7 @@ def _cells(
             f"{path}: cell_pixels={cell_pixels} does not divide the {w}x{h} image into cells"
         )
     k = cell_pixels
-    blocks = layers.reshape(h // k, k, w // k, k, 3)
+    blocks = layers.reshape(h // k, k, w // k, k, 4)
     mixed = ~(blocks == blocks[:, :1, :, :1]).all(axis=(1, 3, 4))
     if mixed.any():
         r, c = (int(v) for v in np.argwhere(mixed)[0])
@@ -100,6 +103,7 @@ def load_map(
             landing=layers[..., 2],
             target=layers[..., 1],
             nfz=layers[..., 0],
+            obstacle=layers[..., 3],
             name=where.name,
             source="" if where.bundled else str(path),
             bundled=where.bundled,

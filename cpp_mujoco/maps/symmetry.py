@@ -75,7 +75,10 @@ def turn_map(grid_map: GridMap, symmetry: Symmetry) -> GridMap:
     """The map's image, named ``<name>~<symmetry>`` (the identity: the map itself)."""
     if symmetry == IDENTITY:
         return grid_map
-    layers = {k: turn_cells(getattr(grid_map, k), symmetry) for k in ("landing", "target", "nfz")}
+    layers = {
+        k: turn_cells(getattr(grid_map, k), symmetry)
+        for k in ("landing", "target", "nfz", "obstacle")
+    }
     origin = f"{grid_map.identity()['map_source']} ({grid_map.label}), image {symmetry.name}"
     name = f"{grid_map.label}~{symmetry.name}"
     return replace(grid_map, **layers, name=name, source=origin, bundled=False)
