@@ -108,6 +108,11 @@ class GreedyAgent:
                 f"agent {self.name!r} was trained on {self.map_shape[0]}x{self.map_shape[1]} maps, "
                 f"the observation is {shape[0]}x{shape[1]}"
             )
+        if "obstacle" in obs and not self.reads_obstacles and np.any(obs["obstacle"]):
+            raise MapSizeError(
+                f"agent {self.name!r} reads no obstacle layer; this map has obstacles that hide "
+                "what its camera sees"
+            )
         n = int(np.shape(obs["coverage"])[0])
         cells = shape[0] * shape[1] if self.map_shape else self.network.input_cells(shape)
         step = max(1, FORWARD_CELLS // cells)  # bounds the activations' memory
@@ -125,7 +130,13 @@ class GreedyAgent:
         """Why this agent does not fit ``grid_map`` (None if it does): a per-map agent flies only
         the map it was trained on (its file's ``map_digest``) — with the symmetric-Q rule also
         that map turned or mirrored; a general agent flies any map.
-        The protocol refuses the misfit unless the user says so (``any_map``)."""
+        A network without an obstacle input fits no map with obstacles: it cannot tell what
+        hides a target. The protocol refuses the misfit unless the user says so (``any_map``)."""
+        if grid_map.has_obstacles and not self.reads_obstacles:
+            return (
+                f"agent {self.name} reads no obstacle layer; map {grid_map.label} has "
+                f"{int(grid_map.obstacle.sum())} obstacle cells that hide what its camera sees"
+            )
         trained = self.metadata.get("map_digest")
         if self.metadata.get("architecture", "paper") != "paper" or not trained:
             return None
@@ -137,6 +148,11 @@ class GreedyAgent:
             f"agent {self.name} was trained on map {self.metadata.get('map')!r} (cells "
             f"{trained}), not on map {grid_map.label} (cells {grid_map.digest})"
         )
+
+    @property
+    def reads_obstacles(self) -> bool:
+        """Whether the network takes the observation's ``obstacle`` layer."""
+        return bool(getattr(self.network, "obstacle_input", False))
 
     def identity(self) -> dict[str, Any]:
         """What results record of this agent (:func:`~cpp_mujoco.protocol.policy.policy_identity`):

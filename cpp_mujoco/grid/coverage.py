@@ -1,15 +1,16 @@
 """Coverage bookkeeping: which cells the camera has seen, and how many targets are new.
 
 Shared by both backends: the grid MDP marks the square field of view through an index table
-(:func:`square_fov_cells`, :func:`mark_fov`), the physics backend marks the camera footprint as a
-mask (:func:`mark_seen`). Nothing here is (cells × cells): memory must grow with the map, not with
-its square.
+(:func:`view_cells`: the square, less what obstacles hide; :func:`mark_fov`), the physics
+backend marks the camera footprint as a mask (:func:`mark_seen`). Nothing here is
+(cells × cells): memory must grow with the map, not with its square.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from cpp_mujoco.grid.occlusion import visible_squares
 from cpp_mujoco.maps import GridMap
 
 
@@ -40,6 +41,25 @@ def square_fov_cells(shape: tuple[int, int], side: int) -> tuple[np.ndarray, np.
     flat = (r * w + c).reshape(h * w, side * side)
     cells = np.where(valid, flat, np.arange(h * w)[:, None]).astype(np.intp)
     return cells, valid
+
+
+def view_cells(grid_map: GridMap, side: int) -> tuple[np.ndarray, np.ndarray]:
+    """The map's field-of-view table: :func:`square_fov_cells`, with the entries that obstacles
+    hide (:mod:`cpp_mujoco.grid.occlusion`) ``valid`` False and pointing at the cell itself, as
+    off-grid entries do, so marking the table never marks a hidden cell. On a map without
+    obstacles it is the square table itself (the rule hides nothing there: every square slot on
+    the grid is on some ray to the border)."""
+    cells, valid = square_fov_cells(grid_map.shape, side)
+    if grid_map.has_obstacles:
+        valid &= visible_squares(grid_map.obstacle, side)
+        cells = np.where(valid, cells, np.arange(cells.shape[0])[:, None])
+    return cells, valid
+
+
+def view_counts(mask: np.ndarray, cells: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """(N, H·W) int32: how many ``mask`` cells (an (N, H·W) bool) each cell's view holds, through
+    a :func:`view_cells` table (:func:`square_fov_counts` is the same where nothing is hidden)."""
+    return (mask[:, cells] & valid).sum(axis=2, dtype=np.int32)
 
 
 def square_fov_counts(mask: np.ndarray, shape: tuple[int, int], side: int) -> np.ndarray:

@@ -20,7 +20,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from cpp_mujoco.grid.actions import LAND
-from cpp_mujoco.grid.coverage import square_fov_cells, square_fov_counts
+from cpp_mujoco.grid.coverage import square_fov_counts, view_cells, view_counts
 from cpp_mujoco.grid.return_rule import REJECTED_AFTER, paid_actions
 from cpp_mujoco.grid.safety import SafetyController
 from cpp_mujoco.maps import GridMap
@@ -115,7 +115,8 @@ class MapGraph:
 
     ``home[p]``: fewest actions from p to be landed (moves to a landing cell, plus the land).
     ``fov_cells[p]``/``fov_targets[p]``: the cells of p's field of view (side² entries) and which
-    of them are targets (padding off the grid is never a target; see ``square_fov_cells``).
+    of them are targets (padding off the grid, and what obstacles hide, is never a target; see
+    :func:`~cpp_mujoco.grid.coverage.view_cells`).
     ``distance_from(cells)``: fewest accepted moves from each cell to every cell (UNREACHABLE if
     none). The move graph is symmetric between cells that are not no-fly (a move p→q is accepted
     iff q is on the grid and not no-fly, and the UAV is never on a no-fly cell), so
@@ -128,6 +129,7 @@ class MapGraph:
     home: np.ndarray
     fov_side: int
     fov_cells: np.ndarray
+    fov_valid: np.ndarray
     fov_targets: np.ndarray
     distances: DistanceRows = field(repr=False)
 
@@ -188,7 +190,28 @@ class MapGraph:
 
     def new_targets_seen(self, unseen: np.ndarray) -> np.ndarray:
         """(N, H·W) int32: of the (N, H·W) bool ``unseen`` target cells, how many each cell sees."""
+        if self.grid_map.has_obstacles:  # the view table (its targets: ``unseen`` are targets)
+            return view_counts(unseen, self.fov_cells, self.fov_targets)
         return square_fov_counts(unseen, self.grid_map.shape, self.fov_side)
+
+    @cached_property
+    def new_per_move(self) -> int:
+        """At most how many cells one move brings into view: ``fov_side`` (a new row or column
+        of the square), more where obstacles hid cells of the old square that the new cell
+        sees. Bounds count ``fov_side² + new_per_move · (moves − 1)`` seen cells."""
+        if not self.grid_map.has_obstacles:
+            return self.fov_side
+        cells = self.fov_cells
+        most = 0
+        for a in range(LAND):
+            src = np.flatnonzero(self.safety.accepted[:, a])
+            dst = self.safety.next_cell[src, a]
+            for part in np.array_split(np.arange(src.size), max(1, src.size // 4096)):
+                p, q = src[part], dst[part]
+                old = (cells[q][:, :, None] == cells[p][:, None, :]).any(axis=2)
+                new = (self.fov_valid[q] & ~old).sum(axis=1)
+                most = max(most, int(new.max(initial=0)))
+        return max(self.fov_side, most)
 
     def returnable_goals(
         self, cells: np.ndarray, budget: np.ndarray, coverage: np.ndarray
@@ -212,13 +235,14 @@ def build_graph(grid_map: GridMap, fov_side: int = 3) -> MapGraph:
     src = np.repeat(np.arange(cells), LAND)[moves.reshape(-1)]
     dst = safety.next_cell[:, :LAND][moves]
     adjacency = csr_matrix((np.ones(src.size), (src, dst)), shape=(cells, cells))
-    fov_cells, fov_valid = square_fov_cells(grid_map.shape, fov_side)
+    fov_cells, fov_valid = view_cells(grid_map, fov_side)
     fov_targets = fov_valid & grid_map.target.reshape(-1)[fov_cells]
     to_landing = _distance_to_any(adjacency, np.flatnonzero(grid_map.landing))
     home = np.minimum(to_landing + 1, UNREACHABLE)  # + the land; "no way home" stays UNREACHABLE
     return MapGraph(
-        grid_map, safety, adjacency, home, fov_side, fov_cells, fov_targets, DistanceRows(adjacency)
-    )
+        grid_map, safety, adjacency, home, fov_side, fov_cells, fov_valid, fov_targets,
+        DistanceRows(adjacency),
+    )  # fmt: skip
 
 
 # a general agent's guide asks for 10–16 maps per step: 4 rebuilt every graph (18 ms a step);
@@ -226,16 +250,23 @@ def build_graph(grid_map: GridMap, fov_side: int = 3) -> MapGraph:
 @lru_cache(maxsize=32)
 def _graph_from_bytes(layers: bytes, shape: tuple[int, ...], fov_side: int) -> MapGraph:
     arr = np.frombuffer(layers, dtype=np.int8).reshape(shape).astype(bool)
+    obstacle = arr[3] if shape[0] > 3 else None
     return build_graph(
-        GridMap(landing=arr[0], target=arr[1], nfz=arr[2], name="observed"), fov_side
+        GridMap(landing=arr[0], target=arr[1], nfz=arr[2], obstacle=obstacle, name="observed"),
+        fov_side,
     )
 
 
 def graph_from_observation(obs: dict[str, np.ndarray], fov_side: int = 3) -> MapGraph:
-    """The graph of the map inside a (batched) observation; cached per map."""
+    """The graph of the map inside a (batched) observation (its ``obstacle`` layer, where the
+    observation has one, included); cached per map."""
     layers = np.asarray(obs["map"])
+    obstacle = obs.get("obstacle")
     if layers.ndim == 4:
         layers = layers[0]
+        obstacle = None if obstacle is None else np.asarray(obstacle)[0]
+    if obstacle is not None and np.any(obstacle):
+        layers = np.concatenate([layers, np.asarray(obstacle)[None]], axis=0)
     layers = np.ascontiguousarray(layers, dtype=np.int8)
     return _graph_from_bytes(layers.tobytes(), layers.shape, fov_side)
 
@@ -253,7 +284,7 @@ def coverage_upper_bounds(
     min(targets visible from cells it can visit and still land, cells a path can see) / targets.
     A visited cell c needs ``2·d(c) + 1 <= budget`` (out from a landing cell, back, land), with
     d the flight distance to the landing zone; the path sees at most ``fov_side²`` cells at its
-    first step and ``fov_side`` new cells per further move (one action is the landing).
+    first step and ``new_per_move`` new cells per further move (one action is the landing).
     """
     g = build_graph(grid_map, fov_side)  # one way-home table for every budget
     bounds = {}
@@ -262,6 +293,6 @@ def coverage_upper_bounds(
         seen = np.zeros(g.num_cells, dtype=bool)
         seen[g.fov_cells[visitable][g.fov_targets[visitable]]] = True
         visible = int(seen.sum())
-        seeable = fov_side**2 + fov_side * max(budget - 2, 0)
+        seeable = fov_side**2 + g.new_per_move * max(budget - 2, 0)
         bounds[budget] = float(min(visible, seeable) / grid_map.target.sum())
     return bounds

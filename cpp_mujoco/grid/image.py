@@ -6,13 +6,16 @@ import numpy as np
 
 from cpp_mujoco.maps import GridMap
 
-# The paper's palette: red no-fly, green target, blue landing, yellow target + no-fly.
+# The paper's palette: red no-fly, green target, blue landing, yellow target + no-fly; the
+# obstacles in greys: a building (obstacle + no-fly) dark, a low obstacle light.
 COLORS = {
     "empty": (235, 235, 235),
     "nfz": (200, 40, 40),
     "target": (40, 160, 60),
     "landing": (40, 80, 200),
     "yellow": (230, 200, 30),
+    "building": (90, 90, 100),
+    "low obstacle": (160, 160, 170),
     "uav": (20, 20, 20),
 }
 
@@ -25,6 +28,8 @@ def zone_colors(grid_map: GridMap) -> np.ndarray:
     img[grid_map.target] = COLORS["target"]
     img[grid_map.nfz] = COLORS["nfz"]
     img[grid_map.target & grid_map.nfz] = COLORS["yellow"]
+    img[grid_map.obstacle & ~grid_map.nfz] = COLORS["low obstacle"]
+    img[grid_map.obstacle & grid_map.nfz] = COLORS["building"]
     return img
 
 

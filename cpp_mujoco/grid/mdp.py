@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from cpp_mujoco.grid.actions import NUM_ACTIONS
-from cpp_mujoco.grid.coverage import mark_fov, square_fov_cells
+from cpp_mujoco.grid.coverage import mark_fov, view_cells
 from cpp_mujoco.grid.safety import SafetyController
 from cpp_mujoco.grid.spaces import MAX_BUDGET
 from cpp_mujoco.grid.wind import EpisodeWinds, GridWind
@@ -119,14 +119,20 @@ class GridMDP:
         self.height, self.width = grid_map.shape
         self.safety = SafetyController(grid_map)
         self.target = grid_map.target.reshape(-1)
-        # the field of view as (cells, side²) indices, not a (cells, cells) mask: memory ∝ cells
-        self.fov_cells, fov_valid = square_fov_cells(grid_map.shape, self.config.fov_side)
+        # the field of view as (cells, side²) indices, not a (cells, cells) mask: memory ∝ cells;
+        # what obstacles hide is not valid (it is neither counted nor marked as seen)
+        self.fov_cells, fov_valid = view_cells(grid_map, self.config.fov_side)
         self.fov_counted = fov_valid & self.target[self.fov_cells]
         self.num_targets = int(self.target.sum())
         self.landing_cells = np.flatnonzero(grid_map.landing)
         self.map_layers = grid_map.layers.astype(np.int8)
         self.map_layers.flags.writeable = False
         self._map_view = np.broadcast_to(self.map_layers, (num_envs, *self.map_layers.shape))
+        obstacle = grid_map.obstacle.astype(np.int8)
+        self._obstacle_view = (
+            np.broadcast_to(obstacle, (num_envs, *obstacle.shape)) if grid_map.has_obstacles
+            else None
+        )  # fmt: skip
         self._rows = np.arange(num_envs)
 
         n, cells = num_envs, self.height * self.width
@@ -331,11 +337,12 @@ class GridMDP:
 
     # ------------------------------------------------------------------ views of the state
     def observation(self) -> dict[str, np.ndarray]:
-        """Batched observation (leading dimension N). ``map`` is a read-only broadcast view."""
+        """Batched observation (leading dimension N). ``map`` (and ``obstacle``, on a map with
+        obstacles) are read-only broadcast views."""
         n, h, w = self.num_envs, self.height, self.width
         position = np.zeros((n, h * w), dtype=np.int8)
         position[self._rows, self.position] = 1
-        return {
+        obs = {
             "map": self._map_view,
             "coverage": self.coverage.view(np.int8).reshape(n, h, w).copy(),
             "position": position.reshape(n, h, w),
@@ -343,11 +350,16 @@ class GridMDP:
             "safety": self.rejected.view(np.int8)[:, None].copy(),
             "wind": self.winds.vector.copy(),
         }
+        if self._obstacle_view is not None:
+            obs["obstacle"] = self._obstacle_view
+        return obs
 
     def observation_of(self, i: int) -> dict[str, np.ndarray]:
         """Environment ``i``'s observation, arrays of its own (no leading dimension)."""
         obs = {k: v[i] for k, v in self.observation().items()}
         obs["map"] = obs["map"].copy()  # the batch shares one read-only map; hand out our own
+        if "obstacle" in obs:
+            obs["obstacle"] = obs["obstacle"].copy()
         return obs
 
     def info_of(self, i: int) -> dict:

@@ -35,7 +35,7 @@ class SingleGridEnv(gym.Env):
         self.render_mode = check_render_mode(render_mode)
         self.grid_map = grid_map
         self.mdp = GridMDP(grid_map, 1, config)
-        self.observation_space = observation_space(*grid_map.shape)
+        self.observation_space = observation_space(*grid_map.shape, grid_map.has_obstacles)
         self.action_space = action_space()
         self._needs_reset = True
 

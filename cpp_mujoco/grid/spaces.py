@@ -15,21 +15,24 @@ MAX_BUDGET = 100_000  # upper bound of the budget observation; larger budgets ar
 RENDER_MODES = ("rgb_array",)  # every env renders RGB frames: map images or the chase camera
 
 
-def observation_space(height: int, width: int) -> spaces.Dict:
+def observation_space(height: int, width: int, obstacles: bool = False) -> spaces.Dict:
     """``map`` (3,H,W) [landing, target, no-fly], ``coverage`` (H,W), ``position`` (H,W) one-hot,
     ``budget`` (1,) remaining movement budget (whole units), ``safety`` (1,) last action rejected,
-    ``wind`` (2,) the steady wind's velocity east and north, m/s (zeros in the paper's calm MDP).
+    ``wind`` (2,) the steady wind's velocity east and north, m/s (zeros in the paper's calm MDP);
+    on a map with ``obstacles``, ``obstacle`` (H,W): the cells that block the camera's view (a
+    map without keeps the paper's keys, so every agent and client of them reads it as before).
     """
-    return spaces.Dict(
-        {
-            "map": spaces.MultiBinary((3, height, width)),
-            "coverage": spaces.MultiBinary((height, width)),
-            "position": spaces.MultiBinary((height, width)),
-            "budget": spaces.Box(0.0, float(MAX_BUDGET), shape=(1,), dtype=np.float32),
-            "safety": spaces.MultiBinary(1),
-            "wind": spaces.Box(-MAX_WIND, MAX_WIND, shape=(2,), dtype=np.float32),
-        }
-    )
+    keys = {
+        "map": spaces.MultiBinary((3, height, width)),
+        "coverage": spaces.MultiBinary((height, width)),
+        "position": spaces.MultiBinary((height, width)),
+        "budget": spaces.Box(0.0, float(MAX_BUDGET), shape=(1,), dtype=np.float32),
+        "safety": spaces.MultiBinary(1),
+        "wind": spaces.Box(-MAX_WIND, MAX_WIND, shape=(2,), dtype=np.float32),
+    }
+    if obstacles:
+        keys["obstacle"] = spaces.MultiBinary((height, width))
+    return spaces.Dict(keys)
 
 
 def action_space() -> spaces.Discrete:

@@ -40,8 +40,9 @@ def turn_observation(obs: dict[str, np.ndarray], symmetry: Symmetry) -> dict[str
     """A batched observation (``map`` (3,H,W) or (N,3,H,W), ``coverage`` and ``position``
     (N,H,W), ``wind`` (N,2)) as seen on the image; other keys (the budget) are unchanged."""
     out = dict(obs)
-    for key in ("map", "coverage", "position"):
-        out[key] = np.ascontiguousarray(turn_cells(obs[key], symmetry))
+    for key in ("map", "coverage", "position", "obstacle"):
+        if key in obs:
+            out[key] = np.ascontiguousarray(turn_cells(obs[key], symmetry))
     if "wind" in obs:
         out["wind"] = turn_wind(obs["wind"], symmetry)
     return out

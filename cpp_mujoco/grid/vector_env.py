@@ -67,7 +67,9 @@ class GridVectorEnv(VectorEnv):
             "render_modes": list(RENDER_MODES),
             "render_fps": 4,
         }
-        self.single_observation_space = observation_space(*self.grid_map.shape)
+        self.single_observation_space = observation_space(
+            *self.grid_map.shape, self.grid_map.has_obstacles
+        )
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.single_action_space = action_space()
         self.action_space = MultiDiscrete(np.full(num_envs, NUM_ACTIONS))

@@ -50,7 +50,8 @@ def _reach(g: MapGraph, start: int, moves: int) -> tuple[np.ndarray, np.ndarray]
 
 def reachable_bound(g: MapGraph, start: int, budget: int, seen: np.ndarray) -> int:
     """Target cells any mission can show: those in view of a cell it can fly over and still land
-    (the start's own view included), capped by the camera's ``side² + side·(moves − 1)``."""
+    (the start's own view included), capped by the camera's ``side² + new·(moves − 1)`` (new:
+    :attr:`~cpp_mujoco.grid.graph.MapGraph.new_per_move`)."""
     target = g.grid_map.target.reshape(-1)
     moves = int(budget) - 1
     out, home = _reach(g, start, moves)
@@ -59,7 +60,7 @@ def reachable_bound(g: MapGraph, start: int, budget: int, seen: np.ndarray) -> i
     visible[g.fov_cells[flyable][g.fov_targets[flyable]]] = True
     already = int((seen & target).sum())
     new = int((visible & ~seen).sum())
-    cap = g.fov_side**2 + g.fov_side * max(moves - 1, 0)
+    cap = g.fov_side**2 + g.new_per_move * max(moves - 1, 0)
     return already + min(new, cap)
 
 

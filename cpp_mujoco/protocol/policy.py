@@ -86,8 +86,9 @@ def batched_for_sb3(obs: Observation) -> Observation:
     the batch as leading dimension (the grid MDP hands out ``map`` as a read-only broadcast)."""
     n = np.shape(obs["coverage"])[0]
     out = {k: np.array(v) for k, v in obs.items()}  # np.array copies: contiguous and writable
-    if out["map"].ndim == 3:  # one map for the whole batch
-        out["map"] = np.repeat(out["map"][None], n, axis=0)
+    for key, cells in (("map", 3), ("obstacle", 2)):  # one map for the whole batch
+        if key in out and out[key].ndim == cells:
+            out[key] = np.repeat(out[key][None], n, axis=0)
     return out
 
 

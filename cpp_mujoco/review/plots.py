@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
-from cpp_mujoco.grid.coverage import square_fov_union
+from cpp_mujoco.grid.coverage import view_cells
 from cpp_mujoco.grid.image import COLORS, zone_colors
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.protocol.evaluate import EvaluationResult
@@ -101,10 +101,11 @@ def map_plot(map_name: str | GridMap) -> Figure:
     counts = grid_map.counts()
     ax.set_title(
         f"map {grid_map.label}: {counts['landing']} landing, {counts['target']} target, "
-        f"{counts['nfz']} no-fly",
+        f"{counts['nfz']} no-fly"
+        + (f", {counts['obstacle']} obstacle" if counts["obstacle"] else ""),
         fontsize=9,
     )
-    map_legend(fig, path=False, ncol=3)
+    map_legend(fig, path=False, ncol=3, obstacles=grid_map.has_obstacles)
     return fig
 
 
@@ -112,7 +113,9 @@ def draw_trajectory(ax, grid_map: GridMap, cells: np.ndarray, fov_side: int = 3)
     """One episode: seen cells lightened, arrows along the path, the start a magenta dot, the
     end a cyan square (:func:`map_legend` names them)."""
     cells = cells[cells >= 0]
-    seen = square_fov_union(grid_map.shape, fov_side, cells[1:])
+    fov_cells, valid = view_cells(grid_map, fov_side)  # what obstacles hide stays unseen
+    seen = np.zeros(grid_map.landing.size, dtype=bool)
+    seen[fov_cells[cells[1:]][valid[cells[1:]]]] = True
     draw_map(ax, grid_map, seen)
     rows, cols = np.divmod(cells, grid_map.shape[1])
     arrow = {"arrowstyle": "->", "color": PATH_COLOR, "lw": 1.2}
@@ -126,9 +129,9 @@ def draw_trajectory(ax, grid_map: GridMap, cells: np.ndarray, fov_side: int = 3)
     ax.plot(cols[0], rows[0], "o", ms=9, mfc=START_COLOR, mec="white", mew=1.5, zorder=5)
 
 
-def map_legend(fig: Figure, path: bool = True, ncol: int = 5) -> None:
-    """A legend below the figure naming every colour drawn: the zones and, with ``path``, the
-    seen cells, the path, its start and its end."""
+def map_legend(fig: Figure, path: bool = True, ncol: int = 5, obstacles: bool = False) -> None:
+    """A legend below the figure naming every colour drawn: the zones (the obstacles' with
+    ``obstacles``) and, with ``path``, the seen cells, the path, its start and its end."""
 
     def zone(name: str, label: str) -> Patch:
         return Patch(fc=np.array(COLORS[name]) / 255, ec="0.5", label=label)
@@ -140,6 +143,8 @@ def map_legend(fig: Figure, path: bool = True, ncol: int = 5) -> None:
         zone("yellow", "target in no-fly"),
         zone("landing", "landing"),
     ]
+    if obstacles:
+        handles += [zone("building", "building"), zone("low obstacle", "low obstacle")]
     if path:
         seen = 0.45 * np.array(COLORS["target"]) / 255 + 0.55
         handles += [
@@ -185,7 +190,8 @@ def trajectories_plot(
         if sel.size == 0:
             raise ValueError(f"no episode with start {start} and budget {budget}")
         i = int(sel[0])
-        draw_trajectory(ax, grid_map, result.trajectories[i])
+        fov_side = int(result.conditions.get("fov_side", 3))
+        draw_trajectory(ax, grid_map, result.trajectories[i], fov_side)
         outcome = "landed" if result.landed[i] else "crashed"
         ax.set_title(
             f"{series_label(result)}, map {result.map_name}, budget {budget}\n"
@@ -193,7 +199,7 @@ def trajectories_plot(
             fontsize=9,
         )
     fig.suptitle(f"start {start}; {conditions_text([result])}", fontsize=9)
-    map_legend(fig, ncol=9 if len(budgets) > 1 else 5)
+    map_legend(fig, ncol=9 if len(budgets) > 1 else 5, obstacles=grid_map.has_obstacles)
     return fig
 
 
