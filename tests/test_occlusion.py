@@ -210,3 +210,15 @@ def test_the_exact_planner_plans_with_what_the_camera_can_see():
         assert landed and seen == entry["seen"]  # the MDP's own count, occlusion included
         assert seen >= fly(g, int(cell), beam, seen0)[0]
     assert entries[-1]["seen"] == int(WALL.target.sum())  # round the wall: every target
+
+
+def test_a_planner_plans_with_the_camera_the_episodes_fly():
+    from cpp_mujoco.planners import make_planner
+    from cpp_mujoco.protocol.evaluate import evaluate
+
+    five = {"fov_side": 5}
+    with pytest.raises(ValueError, match="plans with a 3x3 view, the episodes see 5x5"):
+        evaluate(make_planner("safe-greedy"), WALL, budgets=[20], env_kwargs=five)
+    result = evaluate(make_planner("beam-search", fov_side=5), WALL, budgets=[20, 30],
+                      env_kwargs=five)  # fmt: skip
+    assert result.conditions["fov_side"] == 5 and result.landing_ratio == 1.0

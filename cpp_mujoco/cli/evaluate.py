@@ -51,6 +51,8 @@ def cmd_evaluate(args) -> None:
     if args.map_set or args.first:
         if not args.map_set:
             raise ValueError("--first needs --map-set")
+        if args.fov_side != 3:
+            raise ValueError("--fov-side: a map set is flown with its size class's camera (3)")
         cmd_evaluate_map_set(args, DEFAULT_PLANNERS, weather, runtime)
         return _write_page(args.out)
     grid_maps = [load_map(spec, args.cell_pixels) for spec in args.map or bundled_maps()]
@@ -58,7 +60,10 @@ def cmd_evaluate(args) -> None:
         check_agent_file(spec)
     if not args.planner and not args.agent:
         args.planner = list(DEFAULT_PLANNERS)
-    policies = [(name, make_planner(name, optimal=optimal_options(args))) for name in args.planner]
+    policies = [
+        (name, make_planner(name, optimal=optimal_options(args), fov_side=args.fov_side))
+        for name in args.planner
+    ]
     if args.agent:
         from cpp_mujoco.agent import load_agent  # heavy: torch, only with --agent
 
@@ -71,8 +76,9 @@ def cmd_evaluate(args) -> None:
     extra["budget_step"] = args.budget_step  # of each map's size class
     extra["any_map"] = args.any_map
     extra["optimum"] = args.optimum
+    extra["env_kwargs"] = {"fov_side": args.fov_side} if args.fov_side != 3 else {}
     if args.backend == "mujoco":
-        extra.update(workers=args.workers, env_kwargs=weather)
+        extra.update(workers=args.workers, env_kwargs={**extra["env_kwargs"], **(weather or {})})
         extra["engine"] = "ray" if args.ray else "local"
     with runtime:
         run_evaluation(grid_maps, policies, out, args.backend, **extra)

@@ -93,6 +93,15 @@ def add_budget_step_option(p, default: int = 1, help: str | None = None) -> None
     )  # fmt: skip
 
 
+def add_fov_side_option(p) -> None:
+    """``--fov-side``: the camera's square, for the episodes and the planners alike."""
+    p.add_argument(
+        "--fov-side", type=int_at_least(1), default=3, metavar="N",
+        help="the camera sees the NxN cells around the UAV (3: the paper; 5: its city-map "
+        "successors, where obstacles hide cells) (default: %(default)s)",
+    )  # fmt: skip
+
+
 def add_cell_pixels_option(p) -> None:
     p.add_argument(
         "--cell-pixels", type=int_at_least(1), metavar="N",

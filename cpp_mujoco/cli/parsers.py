@@ -16,6 +16,7 @@ from cpp_mujoco.cli.options import (
     add_any_map_option,
     add_budget_step_option,
     add_cell_pixels_option,
+    add_fov_side_option,
     add_progress_option,
     add_rule_option,
     add_solver_options,
@@ -111,6 +112,7 @@ def add_evaluate(sub) -> None:
     p = sub.add_parser("evaluate", help="run the paper's protocol for planners and agents")
     add_maps_option(p)
     add_cell_pixels_option(p)
+    add_fov_side_option(p)
 
     add_map_set_options(p)
     p.add_argument(

@@ -21,20 +21,26 @@ PLANNERS = {
 WIND_PLANNERS = ("safe-greedy-wind", "beam-search-wind")  # the ones that keep a ReturnMargin
 
 
-def make_planner(name: str, wind_margin: ReturnMargin | None = None, optimal: dict | None = None):
+def make_planner(
+    name: str, wind_margin: ReturnMargin | None = None, optimal: dict | None = None,
+    fov_side: int = 3,
+):  # fmt: skip
     """A reference planner by name (``random``, ``safe-greedy``, ``beam-search``, ``optimal``,
     ``safe-greedy-wind``, ``beam-search-wind``); ``wind_margin`` is the margin the two wind
     planners keep (None: their default), the others price no wind and take none; ``optimal``:
-    the exact planner's keyword arguments (``options``, ``cache_folder``, ``jobs``)."""
+    the exact planner's keyword arguments (``options``, ``cache_folder``, ``jobs``);
+    ``fov_side``: the camera's square the planner plans with (the env's ``GridConfig.fov_side``;
+    the protocol refuses a planner whose square differs)."""
     try:
         kind = PLANNERS[name]
     except KeyError:
         raise ValueError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}") from None
+    view = {} if name == "random" else {"fov_side": fov_side}
     if wind_margin is not None and name in WIND_PLANNERS:
-        return kind(margin=wind_margin)
+        return kind(margin=wind_margin, **view)
     if name == "optimal":
-        return kind(**(optimal or {}))
-    return kind()
+        return kind(**{**(optimal or {}), **view})
+    return kind(**view)
 
 
 __all__ = [

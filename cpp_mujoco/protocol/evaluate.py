@@ -215,6 +215,12 @@ def evaluate(
     if config is None:  # the map's size class
         config = size_config(map_size(grid_map.shape))
     config, physics_kwargs = _split_options(backend, config, env_kwargs)
+    planned = getattr(policy, "fov_side", config.fov_side)
+    if planned != config.fov_side:  # it would plan for a camera the episodes do not fly
+        raise ValueError(
+            f"policy plans with a {planned}x{planned} view, the episodes see "
+            f"{config.fov_side}x{config.fov_side} (make_planner(..., fov_side=...))"
+        )
     if budgets is None:
         budgets = protocol_budgets(config, budget_step)
     starts, budget_per_episode = protocol_episodes(grid_map, budgets)
