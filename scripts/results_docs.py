@@ -292,6 +292,11 @@ def in_page_tables() -> dict[Path, str]:
             load("wind_agents_grid.json"), "results/wind_agents_grid.json"
         )
         tables[docs / "agent.md"].append(("wind-agents", table))
+    if (RESULTS / "transfer_abc_wind.json").is_file():
+        table = doc_tables.transfer_table(
+            load("transfer_abc_wind.json"), "results/transfer_abc_wind.json"
+        )
+        tables[docs / "agent.md"].append(("wind-transfer", table))
     sets = [RESULTS / f"map_set_{name}.json" for name in ("heldout16-v1", "heldout32-v1")]
     if all(path.is_file() for path in sets):
         table = doc_tables.held_out_table(
