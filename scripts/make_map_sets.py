@@ -22,6 +22,9 @@ SETS = {
     "heldout32-v1": (1, 32, 1_000_000, 30, {}),
     # every map with a wall across it and one door, as on map C: the v1 sets seldom have one
     "doors16-v1": (1, 16, 1_100_000, 50, {"door_wall": 1.0}),
+    # city maps (map_sets/city.py): buildings, low obstacles, landing pads on the streets
+    "city32-v1": (1, 32, 1_200_000, 30, {"family": "city"}),
+    "city50-v1": (1, 50, 1_200_000, 30, {"family": "city"}),
 }
 
 NOTE = (

@@ -1,5 +1,6 @@
-"""The ``maps`` subcommand's commands (``maps draw``, ``maps generate``) and ``evaluate
---map-set``'s, which flies a held-out map set; their parsers are in :mod:`cpp_mujoco.cli.parsers`.
+"""The ``maps`` subcommand's commands (``maps draw``, ``maps generate``, ``maps import``) and
+``evaluate --map-set``'s, which flies a held-out map set; their parsers are in
+:mod:`cpp_mujoco.cli.parsers`.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from cpp_mujoco.map_sets.generator import GeneratorConfig, generate_from_seed
 from cpp_mujoco.map_sets.sets import HELDOUT_SEEDS, load_map_set, map_set_spec
 from cpp_mujoco.map_sets.size_classes import budget_range
 from cpp_mujoco.maps import MAX_SIDE, GridMap, MapError, bundled_maps, load_map
+from cpp_mujoco.maps.lineage import import_uavsim
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.protocol.map_sets import evaluate_map_set
 from cpp_mujoco.review.map_set_figures import load_map_set_result, write_map_set_figures
@@ -182,13 +184,33 @@ def cmd_draw(args) -> None:
     print(format_table(rows, ["map", "size", "landing", "target", "nfz", "figure"]))
 
 
+def _import_uavsim(args, source: Path, out: Path) -> tuple[GridMap, str]:
+    """``--format uavsim``: the lineage's map and its targets, and a line on the targets."""
+    if args.cell_pixels is not None or args.white_background:
+        raise ValueError("--cell-pixels and --white-background are for --format ours")
+    if args.seed is not None and args.target_fraction is None:
+        raise ValueError("--seed seeds the drawn targets; give it with --target-fraction")
+    seed = 0 if args.seed is None else args.seed
+    read = import_uavsim(source, args.targets, args.target_fraction, seed, name=out.stem)
+    return read.grid_map, read.describe()
+
+
 def cmd_import(args) -> None:
-    """``maps import``: a map drawn elsewhere, written in the map format (one pixel per cell,
-    black empty) so that every command reads it as it is."""
+    """``maps import``: a map drawn elsewhere (or a uavSim map: ``--format uavsim``), written in
+    the map format (one pixel per cell, black empty) so that every command reads it as it is."""
     source, out = Path(args.source), Path(args.out)
     if out.exists() and not args.overwrite:
         raise ValueError(f"{out} exists; --overwrite replaces it")
-    if source.suffix.lower() == ".txt":
+    note = ""
+    uavsim_only = {"--targets": args.targets, "--target-fraction": args.target_fraction}
+    given = [
+        flag for flag, value in {**uavsim_only, "--seed": args.seed}.items() if value is not None
+    ]
+    if args.format == "uavsim":
+        grid_map, note = _import_uavsim(args, source, out)
+    elif given:
+        raise ValueError(f"{', '.join(given)}: only with --format uavsim")
+    elif source.suffix.lower() == ".txt":
         try:
             text = source.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
@@ -201,3 +223,5 @@ def cmd_import(args) -> None:
     saved = load_map(out)  # read back as every command will
     counts = ", ".join(f"{k} {v}" for k, v in saved.counts().items())
     print(f"{out}: {saved.shape[0]}x{saved.shape[1]} cells ({counts}), digest {saved.digest}")
+    if note:
+        print(note)

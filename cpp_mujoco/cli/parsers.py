@@ -97,10 +97,30 @@ def add_maps(sub) -> None:
     generate.set_defaults(func="cpp_mujoco.cli.maps:cmd_generate")
     imported = kinds.add_parser(
         "import", help="write a map drawn elsewhere (a PNG at several pixels per cell or on white, "
-        "or ASCII text) in the map format: one pixel per cell, black empty",
+        "ASCII text, or a uavSim map) in the map format: one pixel per cell, black empty",
     )  # fmt: skip
-    imported.add_argument("source", help="a PNG, or a .txt of rows ('.' empty, L, T, N, Y, G)")
+    imported.add_argument(
+        "source", help="a PNG, or a .txt of rows ('.' empty, L, T, N, Y, G, O, B)"
+    )  # fmt: skip
     imported.add_argument("--out", required=True, help="the map PNG to write")
+    imported.add_argument(
+        "--format", choices=("ours", "uavsim"), default="ours",
+        help="the source's colours: ours (R no-fly, G target, B landing, alpha < 255 obstacle) "
+        "or uavsim (the lineage's simulator: R no-fly, G obstacle, R+G building, B landing; "
+        "targets from --targets or --target-fraction) (default: %(default)s)",
+    )  # fmt: skip
+    imported.add_argument(
+        "--targets", metavar="TARGET.png",
+        help="--format uavsim: the targets, any non-zero pixel (those under obstacles dropped)",
+    )  # fmt: skip
+    imported.add_argument(
+        "--target-fraction", type=float, metavar="F",
+        help="--format uavsim: draw target patches over this share (0, 1] of the free cells",
+    )  # fmt: skip
+    imported.add_argument(
+        "--seed", type=int_at_least(0), metavar="S",
+        help="with --target-fraction: the seed of the drawn targets (default: 0)",
+    )  # fmt: skip
     add_cell_pixels_option(imported)
     imported.add_argument("--white-background", action="store_true",
                           help="white pixels are empty cells (a map drawn on white)")  # fmt: skip

@@ -10,6 +10,9 @@ in map B.
 
 Every drawn map is checked (:func:`check_map`) and drawn again from the same random stream if it
 fails, so ``generate(np.random.default_rng(seed), size)`` is one fixed, valid map per seed.
+``family="city"`` (a :class:`~cpp_mujoco.map_sets.city.CityConfig`) draws city maps instead:
+a street grid of buildings with low obstacles and landing pads (:mod:`cpp_mujoco.map_sets.city`);
+the paper-style maps' draws are untouched by it.
 Seeds 1,000,000..1,999,999 are reserved for held-out test sets (:mod:`cpp_mujoco.map_sets.sets`):
 training must draw its maps from other seeds.
 """
@@ -18,11 +21,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields, replace
+from typing import ClassVar
 
 import numpy as np
 from scipy import ndimage
 
 from cpp_mujoco.grid.graph import build_graph
+from cpp_mujoco.map_sets.city import CityConfig, draw_city
 from cpp_mujoco.map_sets.size_classes import budget_range, map_size
 from cpp_mujoco.maps import MAX_SIDE, GridMap, MapError
 
@@ -40,6 +45,7 @@ class GeneratorConfig:
     side only (a protocol flies from every landing cell, so its cost grows with them).
     """
 
+    family: ClassVar[str] = "paper"
     landing_cells: tuple[int, int] = (4, 16)  # landing zone size (scaled by s/16)
     landing_blob: float = 0.4  # chance the landing zone is an irregular blob, not a rectangle
     nfz_blocks: tuple[int, int] = (1, 5)  # no-fly blocks per map (scaled by s/16)
@@ -83,21 +89,50 @@ class GeneratorConfig:
         return replace(config or cls(), **options)
 
 
+FAMILIES: dict[str, type] = {"paper": GeneratorConfig, "city": CityConfig}  # name → config
+_PREFIX = {"paper": "gen", "city": "city"}  # a generated map's name starts with it
+
+
+def config_from_options(
+    config: GeneratorConfig | CityConfig | None = None, family: str | None = None, **options
+) -> GeneratorConfig | CityConfig:
+    """The generator's config: ``config`` (default: the ``family``'s, "paper" if none) with
+    ``options`` (its fields) replaced; an unknown family or option is an error naming the known."""
+    if family is not None and family not in FAMILIES:
+        raise ValueError(f"unknown map family {family!r}; known: {', '.join(FAMILIES)}")
+    cls = FAMILIES[family] if family is not None else type(config or GeneratorConfig())
+    if config is not None and not isinstance(config, cls):
+        raise ValueError(f"a {type(config).__name__} is not the {family!r} family's config")
+    return cls.from_options(config, **options)
+
+
 # ------------------------------------------------------------------------------------ checks
-def check_map(grid_map: GridMap, max_budget: int | None = None, fov_side: int = 3) -> None:
+def check_map(
+    grid_map: GridMap, max_budget: int | None = None, fov_side: int = 3, pads: bool = False
+) -> None:
     """Raise :class:`MapError` naming the first rule ``grid_map`` breaks, else return.
 
     The rules (beyond :class:`GridMap`'s own): the landing zone is one 4-connected piece (a
-    start anywhere in it is the same mission); and some target cell is seen (``fov_side`` square
-    field of view) from a cell the UAV can fly to from the landing zone, fly back from and land,
-    all within ``max_budget`` (default: the map's size class maximum) — else no policy can cover
-    anything and the map says nothing about a policy.
+    start anywhere in it is the same mission) — with ``pads`` (city maps) it may be several
+    pads, each reachable from the others through flyable cells; and some target cell is seen
+    (``fov_side`` square field of view) from a cell the UAV can fly to from the landing zone,
+    fly back from and land, all within ``max_budget`` (default: the map's size class maximum)
+    — else no policy can cover anything and the map says nothing about a policy.
     """
     if max_budget is None:
         max_budget = budget_range(map_size(grid_map.shape))[1]
-    _, parts = ndimage.label(grid_map.landing)  # the default structure is 4-connectivity
-    if parts != 1:
-        raise MapError(f"the landing zone is not 4-connected: it has {parts} separate parts")
+    if pads:  # one flyable region holds every pad (moves are 4-connected)
+        region, _ = ndimage.label(~grid_map.nfz)
+        apart = np.unique(region[grid_map.landing]).size
+        if apart != 1:
+            raise MapError(
+                f"the landing pads are not reachable from one another: they lie in {apart} "
+                "flyable regions cut apart by no-fly cells"
+            )
+    else:
+        _, parts = ndimage.label(grid_map.landing)  # the default structure is 4-connectivity
+        if parts != 1:
+            raise MapError(f"the landing zone is not 4-connected: it has {parts} separate parts")
     g = build_graph(grid_map, fov_side)
     # home = moves to the nearest landing cell + the land; moves between free cells go both
     # ways, so that is also the way out. No-fly cells are never entered, so never visited.
@@ -253,7 +288,7 @@ def generate(
     rng: np.random.Generator,
     size: int = 16,
     *,
-    config: GeneratorConfig | None = None,
+    config: GeneratorConfig | CityConfig | None = None,
     name: str | None = None,
     **options,
 ) -> GridMap:
@@ -261,8 +296,10 @@ def generate(
 
     Maps failing a check are drawn again from ``rng`` (at most ``max_attempts`` times, then a
     :class:`MapError` with the last failure), so the same generator state gives the same map.
-    ``options`` override :class:`GeneratorConfig` fields. ``name`` defaults to
-    ``gen<size>-<digest>``; :func:`generate_from_seed` names maps by their seed.
+    ``options`` override :class:`GeneratorConfig` fields, or with ``family="city"``
+    :class:`~cpp_mujoco.map_sets.city.CityConfig` fields. ``name`` defaults to
+    ``gen<size>-<digest>`` (``city<size>-<digest>``); :func:`generate_from_seed` names maps by
+    their seed.
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rng must be a numpy Generator (np.random.default_rng(seed)), got {rng!r}")
@@ -271,17 +308,24 @@ def generate(
     if not MIN_SIZE <= size <= MAX_SIDE:
         raise ValueError(f"map size must be in {MIN_SIZE}..{MAX_SIDE}, got {size}")
     size = int(size)
-    config = GeneratorConfig.from_options(config, **options)
+    config = config_from_options(config, **options)
+    city = isinstance(config, CityConfig)
     max_budget = budget_range(size)[1]
     problem = ""
     for _ in range(config.max_attempts):
         try:
-            grid_map = GridMap(**_draw(rng, size, config), name=name or "generated")
-            check_map(grid_map, max_budget)
+            if city:
+                grid_map = GridMap(**draw_city(rng, size, config), name=name or "generated")
+                check_map(grid_map, max_budget, pads=True)
+            else:
+                grid_map = GridMap(**_draw(rng, size, config), name=name or "generated")
+                check_map(grid_map, max_budget)
         except MapError as exc:
             problem = str(exc)
             continue
-        return grid_map if name else replace(grid_map, name=f"gen{size}-{grid_map.digest[:8]}")
+        if name:
+            return grid_map
+        return replace(grid_map, name=f"{_PREFIX[config.family]}{size}-{grid_map.digest[:8]}")
     raise MapError(
         f"no valid {size}x{size} map in {config.max_attempts} attempts (the last: {problem}); "
         "loosen the generator options or raise max_attempts"
@@ -289,17 +333,20 @@ def generate(
 
 
 def generate_from_seed(seed: int, size: int = 16, **options) -> GridMap:
-    """The map of ``seed``, named ``gen<size>-s<seed>`` — with non-default ``options`` the name
-    also carries the digest, so two different maps never share a name."""
+    """The map of ``seed``, named ``gen<size>-s<seed>`` (``family="city"``: ``city<size>-s<seed>``)
+    — with other options than the family's defaults the name also carries the digest, so two
+    different maps never share a name."""
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
-    name = f"gen{size}-s{seed}"
-    grid_map = generate(np.random.default_rng(int(seed)), size, name=name, **options)
-    if options and GeneratorConfig.from_options(**options) != GeneratorConfig():
+    config = config_from_options(**options)
+    name = f"{_PREFIX[config.family]}{size}-s{seed}"
+    grid_map = generate(np.random.default_rng(int(seed)), size, name=name, config=config)
+    if config != type(config)():
         grid_map = replace(grid_map, name=f"{name}-{grid_map.digest[:8]}")
     return grid_map
 
 
-def describe(config: GeneratorConfig | None = None) -> dict:
-    """The generator's identity for results: its version and options."""
-    return {"generator_version": GENERATOR_VERSION, **asdict(config or GeneratorConfig())}
+def describe(config: GeneratorConfig | CityConfig | None = None) -> dict:
+    """The generator's identity for results: its version, family and options."""
+    config = config or GeneratorConfig()
+    return {"generator_version": GENERATOR_VERSION, "family": config.family, **asdict(config)}

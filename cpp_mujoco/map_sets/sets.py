@@ -33,7 +33,8 @@ class MapSetError(MapError):
 class MapSetSpec:
     """A set's definition: ``count`` maps of ``size`` × ``size`` from seeds ``first_seed`` on,
     by generator version ``generator_version`` with the generator ``options`` (pairs of a
-    :class:`~cpp_mujoco.map_sets.generator.GeneratorConfig` field and its value; none: the
+    :class:`~cpp_mujoco.map_sets.generator.GeneratorConfig` field and its value, or ``family``
+    and a field of that family's config, e.g. ``("family", "city")``; none: the paper-style
     defaults); ``digests`` are the committed maps' digests."""
 
     name: str
@@ -43,7 +44,7 @@ class MapSetSpec:
     count: int
     generator_version: int
     digests: tuple[str, ...]
-    options: tuple[tuple[str, float], ...] = ()
+    options: tuple[tuple[str, object], ...] = ()
 
     @property
     def seeds(self) -> range:
@@ -88,7 +89,7 @@ def _read(path: Path = MAP_SETS_FILE) -> dict[str, MapSetSpec]:
 
 
 def map_set_names() -> list[str]:
-    """The known sets (``heldout16-v1``, ``heldout32-v1``, ``doors16-v1`` …)."""
+    """The known sets (``heldout16-v1``, ``heldout32-v1``, ``doors16-v1``, ``city32-v1`` …)."""
     return sorted(_read())
 
 

@@ -1,9 +1,11 @@
 """Size classes: which movement budgets a map of a given size is flown and evaluated with.
 
 The paper flies 16×16 maps with budgets 25..75. A larger map needs proportionally longer flights
-to reach its far side and come back, so budgets scale with the side: 32×32 → 50..150. This is the
-one place that says so — the map generator's reachability check, map sets and their protocol
-all take their budgets from :func:`budget_range`.
+to reach its far side and come back, so budgets scale with the side: 32×32 → 50..150. 50×50 maps
+fly 150..250, as the lineage flies its 50×50 urban scenes (Theile et al., ICAR 2021), not the
+scaled 78..234: their streets and buildings make the way out and back longer than open maps'.
+This is the one place that says so — the map generator's reachability check, map sets and
+their protocol all take their budgets from :func:`budget_range`.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from typing import Any
 from cpp_mujoco.grid.mdp import GridConfig
 
 # side → (min budget, max budget); other sides scale the paper's 16 → 25..75 linearly
-SIZE_CLASSES: dict[int, tuple[int, int]] = {16: (25, 75), 32: (50, 150)}
+SIZE_CLASSES: dict[int, tuple[int, int]] = {16: (25, 75), 32: (50, 150), 50: (150, 250)}
 _PAPER_SIDE, _PAPER_MIN, _PAPER_MAX = 16, 25, 75
 
 
