@@ -194,7 +194,6 @@ def test_obstacle_maps_round_trip_and_bad_ones_are_refused(tmp_path):
 
 def test_the_exact_planner_plans_with_what_the_camera_can_see():
     from cpp_mujoco.planners.optimal import beam_missions, solve_episodes
-    from cpp_mujoco.planners.optimal_model import fly
     from cpp_mujoco.planners.optimal_solver import SolverOptions
 
     starts = np.array([(0, 0), (3, 2), (0, 0), (3, 2)])
@@ -206,9 +205,9 @@ def test_the_exact_planner_plans_with_what_the_camera_can_see():
     seen0 = np.zeros(g.num_cells, dtype=bool)
     for entry, cell, beam in zip(entries, cells, beams, strict=True):
         assert entry["status"] == "optimal"
-        seen, landed = fly(g, int(cell), np.asarray(entry["actions"]), seen0)
+        seen, landed = g.fly(int(cell), np.asarray(entry["actions"]), seen0)
         assert landed and seen == entry["seen"]  # the MDP's own count, occlusion included
-        assert seen >= fly(g, int(cell), beam, seen0)[0]
+        assert seen >= g.fly(int(cell), beam, seen0)[0]
     assert entries[-1]["seen"] == int(WALL.target.sum())  # round the wall: every target
 
 

@@ -15,7 +15,7 @@ from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.planners.optimal import beam_missions, solve_episodes
-from cpp_mujoco.planners.optimal_model import EpisodeModel, fly
+from cpp_mujoco.planners.optimal_model import EpisodeModel
 from cpp_mujoco.planners.optimal_solver import SolverOptions, solve_episode
 from cpp_mujoco.protocol.evaluate import evaluate, protocol_episodes
 from cpp_mujoco.protocol.optimum import default_folder
@@ -60,7 +60,7 @@ def test_the_model_finds_what_every_action_sequence_finds(budget, solver):
         mission = solve_episode(g, int(row * 5 + col), budget, options=SolverOptions(solver=solver))
         assert mission.status == "optimal"
         assert mission.seen == mission.bound == best_by_every_sequence(grid_map, (row, col), budget)
-        seen, landed = fly(g, int(row * 5 + col), mission.actions, np.zeros(25, bool))
+        seen, landed = g.fly(int(row * 5 + col), mission.actions, np.zeros(25, bool))
         assert landed and seen == mission.seen and mission.actions.size <= budget
 
 
@@ -114,7 +114,7 @@ def test_a_mid_episode_replan_counts_what_was_seen():
     seen[[3, 4, 8, 9]] = True  # the top-right targets, already seen
     mission = solve_episode(g, 1, 7, seen)
     assert mission.status == "optimal"
-    assert fly(g, 1, mission.actions, seen) == (mission.seen, True)
+    assert g.fly(1, mission.actions, seen) == (mission.seen, True)
 
 
 def test_the_cache_is_reused_and_resumed(tmp_path):
@@ -164,7 +164,7 @@ def test_beam_missions_land_within_their_budget():
     g = build_graph(grid_map)
     cells = np.flatnonzero(grid_map.landing.reshape(-1))[:3]
     for cell, actions in zip(cells, beam_missions(grid_map, cells, np.full(3, 30)), strict=True):
-        _, landed = fly(g, int(cell), actions, np.zeros(g.num_cells, bool))
+        _, landed = g.fly(int(cell), actions, np.zeros(g.num_cells, bool))
         assert landed and actions.size <= 30
 
 
@@ -219,7 +219,7 @@ def test_a_results_trajectory_flies_again_as_actions():
     for i in range(result.landed.size):
         actions = trajectory_actions(g, result.trajectories[i])
         cell = int(result.starts[i, 0] * 16 + result.starts[i, 1])
-        seen, landed = fly(g, cell, actions, np.zeros(g.num_cells, bool))
+        seen, landed = g.fly(cell, actions, np.zeros(g.num_cells, bool))
         assert landed and seen == round(result.coverage[i] * grid_map.target.sum())
         assert actions.size == result.steps[i]
 
@@ -260,8 +260,8 @@ def test_a_known_mission_is_a_point_of_the_model(memory):
         assert x is not None
         ax = model.A @ x
         assert ((ax >= model.lo - 1e-9) & (ax <= model.hi + 1e-9)).all()
-        assert (x <= model.upper).all() and model.objective @ x == fly(
-            g, int(cell), actions, np.zeros(25, bool)
+        assert (x <= model.upper).all() and model.objective @ x == g.fly(
+            int(cell), actions, np.zeros(25, bool)
         )[0]
 
 
@@ -280,7 +280,7 @@ def test_the_relaxations_paths_are_missions_and_the_start_changes_no_answer():
         assert paths and np.isfinite(value)
         for walk in paths:  # each path a mission: it lands within the budget, under the bound
             actions = model.actions(walk)
-            seen, landed = fly(g, start, actions, np.zeros(g.num_cells, bool))
+            seen, landed = g.fly(start, actions, np.zeros(g.num_cells, bool))
             assert landed and actions.size <= budget and seen <= value + 1e-6
         plain = solve_episode(g, start, budget, options=SolverOptions(relaxation_start=False))
         read = solve_episode(g, start, budget)
@@ -297,7 +297,7 @@ def test_the_model_with_two_cells_of_memory_finds_what_every_action_sequence_fin
         start = int(row * 5 + col)
         model = EpisodeModel(g, start, budget - 1, np.zeros(25, bool), memory=2)
         answer = _highs(model, SolverOptions(), None)
-        seen, landed = fly(g, start, model.actions(answer.x), np.zeros(25, bool))
+        seen, landed = g.fly(start, model.actions(answer.x), np.zeros(25, bool))
         best = best_by_every_sequence(grid_map, (row, col), budget)
         assert answer.status == "optimal" and landed
         assert seen == round(float(model.objective @ answer.x)) == best

@@ -1,14 +1,18 @@
-"""The optimum cache keeps each start's entries consistent across budgets: a smaller budget's
-mission flies with a larger one, a larger budget's bound holds for a smaller one."""
+"""The optimum cache keeps its entries consistent with each other: a smaller budget's mission
+flies with a larger one, a neighbouring landing cell's after the flight between them, and the
+bounds likewise."""
 
 import numpy as np
 import pytest
 
 from cpp_mujoco.grid.graph import build_graph
-from cpp_mujoco.maps import load_map
-from cpp_mujoco.planners.optimal_model import fly
+from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.protocol.optimum import default_folder
-from cpp_mujoco.protocol.optimum_cache import CacheError, OptimumCache, tighten_by_budget
+from cpp_mujoco.protocol.optimum_cache import CacheError, OptimumCache, tighten
+
+N, E, S, W, LAND = 0, 1, 2, 3, 4
+PATCH = GridMap.from_ascii("LL..T\n.....\nT...T")
+G = build_graph(PATCH, 3)
 
 
 def entry(seen, bound, status, actions, solver="HiGHS 1.16.0"):
@@ -18,30 +22,44 @@ def entry(seen, bound, status, actions, solver="HiGHS 1.16.0"):
     }  # fmt: skip
 
 
-def test_missions_climb_and_bounds_fall_across_budgets():
+def flown(start: int, actions: list[int]) -> int:
+    seen, landed = G.fly(start, np.array(actions))
+    assert landed
+    return seen
+
+
+def test_missions_climb_and_bounds_fall_across_budgets_and_landing_cells():
+    tour = [E, E, E, S, W, W, W, N, LAND]  # from (0, 1): the east column, back along row 1
+    assert flown(1, tour) == 3  # every target
     entries = {
-        "3,1,9": entry(0, 0, "infeasible", []),
-        "3,1,10": entry(7, 9, "feasible", [0, 0, 4]),
-        "3,1,11": entry(6, 9, "feasible", [1, 4]),  # worse than the smaller budget's mission
-        "3,1,12": entry(8, 12, "feasible", [2, 2, 4]),
-        "3,1,13": entry(8, 8, "optimal", [2, 2, 4]),  # proves 8 for every smaller budget
-        "0,0,11": entry(5, 6, "feasible", [3, 4]),  # another start: left alone
+        "0,1,9": entry(3, 4, "feasible", tour),
+        "0,1,10": entry(1, 9, "feasible", [S, N, LAND]),  # worse than the smaller budget's
+        "0,0,10": entry(1, 9, "feasible", [S, N, LAND]),  # (0, 1)'s tour flies from here too
+        "0,0,11": entry(0, 9, "unknown", []),
+        "0,1,12": entry(3, 3, "optimal", tour),  # proves 3 for (0, 1) up to 12, (0, 0) to 11
+        "0,0,7": entry(0, 0, "infeasible", []),  # the tour needs 10 units from (0, 0)
     }
-    assert tighten_by_budget(entries) == 3
-    assert entries["3,1,9"]["status"] == "infeasible"
-    assert entries["3,1,10"] == {**entry(7, 8, "feasible", [0, 0, 4]),
-                                 "tightened_from": {"mission": 10, "bound": 13}}  # fmt: skip
-    assert entries["3,1,11"]["actions"] == [0, 0, 4] and entries["3,1,11"]["seen"] == 7
-    assert entries["3,1,11"]["tightened_from"] == {"mission": 10, "bound": 13}
-    assert entries["3,1,12"]["status"] == "optimal" and entries["3,1,12"]["bound"] == 8
-    assert "tightened_from" not in entries["3,1,13"] and "tightened_from" not in entries["0,0,11"]
-    assert tighten_by_budget(entries) == 0  # consistent now: nothing more to change
+    assert tighten(entries, G) == 4
+    assert entries["0,1,9"] == {**entry(3, 3, "optimal", tour),
+                                "tightened_from": {"bound": "0,1,12"}}  # fmt: skip
+    assert entries["0,1,10"]["actions"] == tour and entries["0,1,10"]["status"] == "optimal"
+    assert entries["0,1,10"]["tightened_from"] == {"mission": "0,1,9", "bound": "0,1,12"}
+    for key in ("0,0,10", "0,0,11"):  # the flight to (0, 1) first
+        assert entries[key]["actions"] == [E, *tour] and entries[key]["status"] == "optimal"
+        assert entries[key]["seen"] == flown(0, [E, *tour]) == 3
+        assert entries[key]["tightened_from"] == {"mission": "0,1,9", "bound": "0,1,12"}
+    assert entries["0,0,7"]["status"] == "infeasible" and "tightened_from" not in entries["0,1,12"]
+    assert tighten(entries, G) == 0  # consistent now: nothing more to change
 
 
 def test_a_cache_that_contradicts_itself_is_refused():
-    entries = {"3,1,10": entry(9, 9, "optimal", [0, 4]), "3,1,11": entry(7, 8, "feasible", [4])}
-    with pytest.raises(CacheError, match=r"contradicts itself at start \(3, 1\)"):
-        tighten_by_budget(entries)
+    tour = [E, E, E, S, W, W, W, N, LAND]
+    entries = {"0,1,9": entry(3, 3, "optimal", tour), "0,0,11": entry(1, 2, "feasible", [S])}
+    with pytest.raises(CacheError, match=r"contradicts itself at episode 0,1,9: .*bound is 2 .*0,0,11"):
+        tighten(entries, G)
+    entries = {"0,1,9": entry(3, 3, "optimal", tour), "0,0,10": entry(0, 0, "infeasible", [])}
+    with pytest.raises(CacheError, match=r"0,0,10: it has no way home"):
+        tighten(entries, G)
 
 
 @pytest.mark.parametrize("name", ["A", "B"])
@@ -55,7 +73,7 @@ def test_every_tightened_mission_of_the_committed_cache_flies_to_its_count(name)
     for key, e in moved.items():
         row, col, budget = (int(v) for v in key.split(","))
         actions = np.array(e["actions"], dtype=np.int64)
-        seen, landed = fly(g, row * width + col, actions, np.zeros(g.num_cells, bool))
+        seen, landed = g.fly(row * width + col, actions, np.zeros(g.num_cells, bool))
         assert landed and actions.size <= budget and seen == e["seen"] <= e["bound"]
     # and the file is consistent: tightening it again changes nothing
-    assert tighten_by_budget(dict(cache.entries)) == 0
+    assert tighten(dict(cache.entries), g) == 0

@@ -188,6 +188,22 @@ class MapGraph:
             bits[owner[on], q >> 6] |= np.left_shift(np.uint64(1), (q & 63).astype(np.uint64))
         return bits
 
+    def fly(
+        self, start: int, actions: np.ndarray, seen: np.ndarray | None = None
+    ) -> tuple[int, bool]:
+        """(target cells seen, landed) after ``actions`` from flat cell ``start`` under the MDP's
+        rules, ``seen`` (H·W bool) the cells seen before: one mission checked, as the exact
+        planner and the optimum cache check theirs."""
+        covered = np.zeros(self.num_cells, dtype=bool) if seen is None else seen.copy()
+        cell, landed = int(start), False
+        for a in np.asarray(actions, dtype=np.int64):
+            cell = int(self.safety.next_cell[cell, a])
+            covered[self.fov_cells[cell][self.fov_valid[cell]]] = True
+            if self.safety.lands[cell, a]:
+                landed = True
+                break
+        return int((covered & self.grid_map.target.reshape(-1)).sum()), landed
+
     def new_targets_seen(self, unseen: np.ndarray) -> np.ndarray:
         """(N, H·W) int32: of the (N, H·W) bool ``unseen`` target cells, how many each cell sees."""
         if self.grid_map.has_obstacles:  # the view table (its targets: ``unseen`` are targets)

@@ -64,20 +64,6 @@ def reachable_bound(g: MapGraph, start: int, budget: int, seen: np.ndarray) -> i
     return already + min(new, cap)
 
 
-def fly(g: MapGraph, start: int, actions: np.ndarray, seen: np.ndarray) -> tuple[int, bool]:
-    """(target cells seen, landed) after ``actions`` from ``start`` under the MDP's rules."""
-    covered = seen.copy()
-    cell, landed = start, False
-    for a in actions:
-        cell = int(g.safety.next_cell[cell, a])
-        covered[g.fov_cells[cell]] = True
-        if g.safety.lands[cell, a]:
-            landed = True
-            break
-    target = g.grid_map.target.reshape(-1)
-    return int((covered & target).sum()), landed
-
-
 def _group(keys: np.ndarray) -> dict[int, np.ndarray]:
     """{key: the indices holding it}."""
     if not keys.size:

@@ -26,7 +26,7 @@ import ortools
 
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import MapGraph
-from cpp_mujoco.planners.optimal_model import EpisodeModel, fly, reachable_bound
+from cpp_mujoco.planners.optimal_model import EpisodeModel, reachable_bound
 from cpp_mujoco.planners.optimal_relaxation import peeled_paths
 
 SOLVERS = ("highs", "cp-sat")
@@ -211,7 +211,7 @@ def solve_episode(
     known = None  # the hint, when it is a mission of this episode
     if hint is not None:
         hint = np.asarray(hint, dtype=np.int64)
-        hint_seen, hint_landed = fly(g, start, hint, seen)
+        hint_seen, hint_landed = g.fly(start, hint, seen)
         if hint_landed and hint.size <= budget:
             known = Mission(hint, hint_seen, bound, "feasible", 0.0)
             if hint_seen >= bound:
@@ -223,7 +223,7 @@ def solve_episode(
         bound = min(bound, already + int(np.floor(value + 1e-6))) if np.isfinite(value) else bound
         for walk in peeled_paths(remembered, x) if x is not None else []:
             actions = remembered.actions(walk)
-            walk_seen, landed = fly(g, start, actions, seen)
+            walk_seen, landed = g.fly(start, actions, seen)
             if landed and (known is None or walk_seen > known.seen):
                 known, hint = Mission(actions, walk_seen, bound, "feasible", 0.0), actions
         if known is not None and known.seen >= bound:
@@ -245,7 +245,7 @@ def solve_episode(
             return _labelled(known.actions, known.seen, proven, elapsed)
         return Mission(np.zeros(0, np.int64), already, already, answer.status, elapsed)
     actions = model.actions(answer.x)
-    flown, landed = fly(g, start, actions, seen)
+    flown, landed = g.fly(start, actions, seen)
     value = already + int(round(float(model.objective @ answer.x)))
     # a solution that is not proven may leave a target it reveals uncounted: the MDP's count is
     # the mission's; never fewer than the model's, and the same once proven

@@ -7,9 +7,9 @@ digest and field of view; a file of another map, another format or a broken one 
 a clear error and never overwritten. Writes go through :func:`cpp_mujoco.util.io.atomic_write_text`,
 so an interrupted solve keeps every entry saved before it and resumes from there.
 
-The entries of one start are consistent across budgets before they are written
-(:func:`tighten_by_budget`): a mission of a smaller budget also flies with a larger one (it lands
-sooner), and a bound of a larger budget also holds for a smaller one.
+The entries are consistent with each other before they are written (:func:`tighten`): a
+mission of a smaller budget also flies with a larger one (it lands sooner), a mission from one
+landing cell also flies from another after the flight between them, and the bounds likewise.
 """
 
 from __future__ import annotations
@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from cpp_mujoco.grid.actions import LAND
+from cpp_mujoco.grid.graph import MapGraph, build_graph
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.util.io import atomic_write_text
 
@@ -129,7 +131,7 @@ class OptimumCache:
                     bound = min(theirs["bound"], mine["bound"])
                     status = "optimal" if better["seen"] >= bound else better["status"]
                     self.entries[key] = {**better, "bound": bound, "status": status}
-        tighten_by_budget(self.entries)
+        tighten(self.entries, build_graph(self.grid_map, self.fov_side))
         data = {
             "format": FORMAT,
             "map": self.label,
@@ -145,58 +147,90 @@ class OptimumCache:
         atomic_write_text(self.path, json.dumps(data, indent=1))
 
 
-def tighten_by_budget(entries: dict[str, dict[str, Any]]) -> int:
-    """Make each start's entries monotone in the budget, in place; the number of entries changed.
+def _path(g: MapGraph, src: int, dst: int) -> list[int]:
+    """The moves of one shortest accepted flight from flat cell ``src`` to ``dst``."""
+    to_dst = g.distance_from([dst])[0]  # symmetric between flyable cells: d(·, dst)
+    moves, cell = [], src
+    while cell != dst:
+        nxt = g.safety.next_cell[cell, :LAND]
+        closer = g.safety.accepted[cell, :LAND] & (to_dst[nxt] == to_dst[cell] - 1)
+        a = int(np.flatnonzero(closer)[0])
+        moves.append(a)
+        cell = int(nxt[a])
+    return moves
 
-    Every mission of budget b' < b is a mission of budget b (it lands after at most b' actions),
-    so an entry takes the best mission of any smaller budget; every mission of budget b is one of
-    any larger budget, so an entry takes the lowest bound of any larger budget. An entry changed so
-    says where from (``tightened_from``: the budgets whose mission and bound it holds), and is
-    optimal once its mission meets its bound."""
-    by_start: dict[tuple[int, int], list[int]] = {}
-    for key in entries:
-        r, c, b = _order(key)
-        by_start.setdefault((r, c), []).append(b)
-    changed = 0
-    for (r, c), budgets in by_start.items():
-        budgets.sort()
-        lowest: list[tuple[int, int]] = []  # (bound, its budget) from the largest budget down
-        for b in reversed(budgets):
-            e = entries[episode_key((r, c), b)]
-            if e["status"] != "infeasible" and (not lowest or e["bound"] < lowest[-1][0]):
-                lowest.append((e["bound"], b))
-            else:
-                lowest.append(lowest[-1] if lowest else (e["bound"], b))
-        lowest.reverse()
-        best: tuple[int, int] | None = None  # (seen, its budget) from the smallest budget up
-        for b, (bound, bound_budget) in zip(budgets, lowest, strict=True):
-            key = episode_key((r, c), b)
-            e = entries[key]
-            if e["status"] == "infeasible":
-                continue
-            if best is None or e["seen"] >= best[0]:
-                best = (e["seen"], b)
-            mission_budget = best[1]
-            if mission_budget == b and (bound_budget == b or bound >= e["bound"]):
-                continue
-            source = entries[episode_key((r, c), mission_budget)]
-            seen, bound = source["seen"], min(bound, e["bound"])
-            if seen > bound:
+
+def tighten(entries: dict[str, dict[str, Any]], g: MapGraph) -> int:
+    """Make the entries consistent with each other, in place; the number of entries changed.
+
+    A mission of budget b' from landing cell s' is, after the d(s, s') moves from s to s', a
+    mission of any budget b >= b' + d(s, s') from s, and it sees at least as much: an entry takes
+    the best such mission (flown under the MDP's rules, its own count). Every mission of budget b
+    from s is so part of one of budget b + d(s', s) from s': an entry takes the lowest such bound.
+    The budget alone (s' = s, d = 0: a mission of a smaller budget lands sooner) makes each
+    start's entries monotone. An entry changed so says where from (``tightened_from``: the
+    episodes whose mission and bound it holds) and is optimal once its mission meets its bound;
+    an entry the others contradict is a :class:`CacheError`."""
+    keys = [k for k, e in entries.items() if e["status"] != "infeasible"]
+    if not keys:
+        return 0
+    width = g.grid_map.shape[1]
+    parts = np.array([_order(k) for k in keys], dtype=np.int64)
+    cells = parts[:, 0] * width + parts[:, 1]
+    starts, index = np.unique(cells, return_inverse=True)
+    between = g.distance_from(starts)[:, starts].astype(np.int64)[index[:, None], index[None, :]]
+    budget = parts[:, 2]
+    _refuse_infeasible(entries, g, parts, budget)
+    changed: set[str] = set()
+    for _ in range(len(keys)):  # each pass can only raise a mission's count: few passes
+        seen = np.array([entries[k]["seen"] for k in keys])
+        bound = np.array([entries[k]["bound"] for k in keys])
+        flies = budget[None, :] + between <= budget[:, None]  # [i, j]: j's mission flies for i
+        best = np.where(flies, seen[None, :], -1).argmax(axis=1)
+        holds = budget[None, :] >= budget[:, None] + between.T  # [i, j]: j's bound holds for i
+        low = np.where(holds, bound[None, :], np.iinfo(np.int64).max).argmin(axis=1)
+        moved = False
+        for i in np.flatnonzero((seen[best] > seen) | (bound[low] < bound)):
+            key, e = keys[i], dict(entries[keys[i]])
+            origin = e.get("tightened_from", {})
+            if seen[best[i]] > seen[i]:
+                j = best[i]
+                actions = _path(g, int(cells[i]), int(cells[j])) + list(entries[keys[j]]["actions"])
+                count, landed = g.fly(int(cells[i]), np.array(actions, dtype=np.int64))
+                if not landed or count < seen[j] or len(actions) > budget[i]:
+                    raise CacheError(f"episode {keys[j]}'s mission does not fly to its count")
+                e.update(seen=int(count), actions=actions)
+                origin = {**origin, "mission": keys[j]}
+            if bound[low[i]] < bound[i]:
+                e["bound"] = int(bound[low[i]])
+                origin = {**origin, "bound": keys[low[i]]}
+            if e["seen"] > e["bound"]:
                 raise CacheError(
-                    f"the optimum cache contradicts itself at start ({r}, {c}): budget "
-                    f"{mission_budget}'s mission sees {seen} targets, budget {bound_budget}'s "
-                    f"bound is {bound}"
+                    f"the optimum cache contradicts itself at episode {key}: a mission sees "
+                    f"{e['seen']} targets, the bound is {e['bound']} (from {origin})"
                 )
-            entries[key] = {
-                **e,
-                "seen": int(seen),
-                "bound": int(bound),
-                "status": "optimal" if seen >= bound else "feasible",
-                "actions": list(source["actions"]),
-                "tightened_from": {"mission": mission_budget, "bound": bound_budget},
-            }
-            changed += 1
-    return changed
+            e["status"] = "optimal" if e["seen"] >= e["bound"] else "feasible"
+            entries[key] = {**e, "tightened_from": origin}
+            changed.add(key)
+            moved = True
+        if not moved:
+            break
+    return len(changed)
+
+
+def _refuse_infeasible(entries, g: MapGraph, parts: np.ndarray, budget: np.ndarray) -> None:
+    """An episode said to have no way home where a mission of the others proves one."""
+    width = g.grid_map.shape[1]
+    for key, e in entries.items():
+        if e["status"] != "infeasible":
+            continue
+        r, c, b = _order(key)
+        d = g.distance_from([r * width + c])[0][parts[:, 0] * width + parts[:, 1]]
+        if (budget + d <= b).any():
+            raise CacheError(
+                f"the optimum cache contradicts itself at episode {key}: it has no way home, "
+                "a mission of another episode gives one"
+            )
 
 
 def _order(key: str) -> tuple[int, ...]:

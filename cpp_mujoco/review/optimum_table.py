@@ -120,7 +120,10 @@ def proven_share(name: str) -> str:
         if e["status"] == "optimal":
             by = f"{e['solver']} ({e['time_limit_s']:g} s limit)"
             if "tightened_from" in e:  # a proven entry changes only when its neighbours prove it
-                by = "the budgets beside it (a smaller budget's mission, a larger one's bound)"
+                by = (
+                    "the episodes beside it (the mission of a smaller budget or of a nearby "
+                    "landing cell, the bound of a larger budget or of a nearby landing cell)"
+                )
             proven[by] = proven.get(by, 0) + 1
     open_gaps = [e["bound"] - e["seen"] for e in entries.values() if e["status"] != "optimal"]
     times = np.array([e["time_s"] for e in entries.values()])
