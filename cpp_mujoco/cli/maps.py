@@ -13,7 +13,7 @@ from pathlib import Path
 from cpp_mujoco.cli.optimum import optimal_options
 from cpp_mujoco.cli.options import check_agent_file, out_dir, progress_wanted, rules_for
 from cpp_mujoco.grid.wind import GridWind
-from cpp_mujoco.map_sets.generator import GeneratorConfig, generate_from_seed
+from cpp_mujoco.map_sets.generator import config_from_options, generate_from_seed
 from cpp_mujoco.map_sets.sets import HELDOUT_SEEDS, load_map_set, map_set_spec
 from cpp_mujoco.map_sets.size_classes import budget_range
 from cpp_mujoco.maps import MAX_SIDE, GridMap, MapError, bundled_maps, load_map
@@ -48,7 +48,11 @@ def cmd_generate(args) -> None:
     if size > MAX_SIDE:
         raise ValueError(f"--size {size}: maps are at most {MAX_SIDE} cells a side")
     options = {} if args.door_wall is None else {"door_wall": args.door_wall}
-    GeneratorConfig.from_options(**options)  # a bad chance is an error before the folder
+    if args.family != "paper":
+        if options:
+            raise ValueError(f"--door-wall is an option of the paper family, not {args.family}")
+        options = {"family": args.family}
+    config_from_options(**options)  # a bad option is an error before the folder
     out = _claim_folder(args.out, args.overwrite)
     if seeds.start < HELDOUT_SEEDS.stop and HELDOUT_SEEDS.start < seeds.stop:
         print(

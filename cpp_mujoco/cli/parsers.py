@@ -49,9 +49,15 @@ def add_generate_options(p) -> None:
         help="the maps' side, cells (default: %(default)s)",
     )  # fmt: skip
     p.add_argument(
+        "--family", choices=("paper", "city"), default="paper",
+        help="paper: blocks of no-fly, target blobs, one landing zone (the held-out v1 sets); "
+        "city: buildings on a street grid, low obstacles, landing pads (city32-v1, city50-v1) "
+        "(default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
         "--door-wall", type=float, metavar="P",
-        help="the chance each map has a wall across it with one door of 1-2 cells, as on map C "
-        "(default: 0, the held-out v1 sets' generator)",
+        help="paper family: the chance each map has a wall across it with one door of 1-2 "
+        "cells, as on map C (default: 0, the held-out v1 sets' generator)",
     )  # fmt: skip
     p.add_argument(
         "--overwrite", action="store_true",
@@ -67,9 +73,10 @@ def add_map_set_options(p) -> None:
     p.add_argument(
         "--map-set", metavar="NAME",
         help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1, doors16-v1: "
-        "every map with a wall and one door), flown on "
-        "--backend with its size class's budgets (16x16: 25..75, 32x32: 50..150); writes a JSON "
-        "and its figures (per-map coverage, example trajectories) into --out",
+        "every map with a wall and one door; city32-v1, city50-v1: buildings that hide "
+        "targets), flown on --backend with its size class's budgets (16x16: 25..75, 32x32: "
+        "50..150, 50x50: 150..250); writes a JSON and its figures (per-map coverage, example "
+        "trajectories) into --out",
     )  # fmt: skip
     p.add_argument(
         "--first", type=int_at_least(1), metavar="N",

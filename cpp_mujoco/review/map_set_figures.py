@@ -206,7 +206,8 @@ def result_grid_map(data: dict, row: dict, grid_maps: Mapping[str, GridMap] | No
     if grid_maps and row["map"] in grid_maps:
         return grid_maps[row["map"]]
 
-    grid_map = generate_from_seed(int(row["seed"]), int(data["map_set"]["size"]))
+    options = data["map_set"].get("generator_options", {})  # a family's options (doors, city)
+    grid_map = generate_from_seed(int(row["seed"]), int(data["map_set"]["size"]), **options)
     if grid_map.digest != row["map_digest"]:
         raise ValueError(
             f"map {row['map']} regenerates with digest {grid_map.digest}, the result's is "
