@@ -30,6 +30,7 @@ import cpp_mujoco  # noqa: F401  (registers the envs)
 from cpp_mujoco.maps import GridMap, load_map
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
+from cpp_mujoco.physics.obstacles import obstacle_boxes
 from cpp_mujoco.protocol.episode import run_episode
 from cpp_mujoco.protocol.policy import check_fits, policy_name
 from cpp_mujoco.review.flight_review import ActionTap, FlightReview, outcome_status
@@ -123,6 +124,8 @@ def fly_mission(
             review["recorder"] = MissionRecorder(
                 rrd, grid_map, cell_size, altitude, properties=about, wind=physics
             )
+            if grid_map.has_obstacles:
+                _log_obstacles(review["recorder"], grid_map, world)
         recorder = review["recorder"]
         if physics:  # fills cameras and writers as it opens them, so all get closed
             about = {"map_name": grid_map.label, "policy": policy_name(policy), "budget": budget}
@@ -213,6 +216,24 @@ def _finalise(recorder, writers, cameras, interrupted: str | None) -> dict[str, 
     if failure is not None and interrupted is None:
         raise failure
     return files
+
+
+def _log_obstacles(recorder, grid_map: GridMap, world: PhysicsConfig) -> None:
+    """The map's obstacles in the recording as the arena's boxes, at their heights and in their
+    colours (a building's, a low obstacle's): the grid backend draws them at ``world``'s too."""
+    import rerun as rr  # heavy: rerun, only for rrd
+
+    boxes = obstacle_boxes(grid_map, world)
+    recorder.rec.log(
+        "world/obstacles",
+        rr.Boxes3D(
+            centers=boxes.centers,
+            half_sizes=boxes.half_sizes,
+            colors=np.round(boxes.rgba() * 255).astype(np.uint8),
+            fill_mode="solid",
+        ),
+        static=True,
+    )
 
 
 def _log_grid_pose(recorder, grid_map, position, cell_size, altitude, time_s, fov_side) -> None:

@@ -43,11 +43,13 @@ def _collides(model: mujoco.MjModel) -> np.ndarray:
     return (model.geom_contype != 0) | (model.geom_conaffinity != 0)
 
 
-def reach_below(model: mujoco.MjModel, body: int) -> float:
-    """How far from the origin of ``body`` (a free body) its collidable geoms and those of its
-    descendants can reach, in any attitude: the bodies' offsets add along the chain."""
+def reach_below(model: mujoco.MjModel, body: int, every_geom: bool = False) -> float:
+    """How far from the origin of ``body`` (a free body) its collidable geoms (``every_geom``:
+    all its geoms, the airframe's bounding sphere) and those of its descendants can reach, in
+    any attitude: the bodies' offsets add along the chain."""
     far = 0.0
-    for g in np.flatnonzero(_collides(model)).tolist():
+    geoms = np.ones(model.ngeom, dtype=bool) if every_geom else _collides(model)
+    for g in np.flatnonzero(geoms).tolist():
         b, offset = int(model.geom_bodyid[g]), 0.0
         while b not in (body, 0):
             offset += float(np.linalg.norm(model.body_pos[b]))

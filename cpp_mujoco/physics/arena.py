@@ -3,7 +3,9 @@
 Only what the physics needs is a model geom: the map's ground tiles and no-fly volumes are drawn
 at render time (:mod:`cpp_mujoco.physics.view.scenery`), which makes every ``mj_step`` ~40 %
 cheaper on a
-16×16 map. The map itself is stored in the model (a ``<custom><numeric>`` field the physics never
+16×16 map. A map with obstacles adds their boxes (:mod:`~cpp_mujoco.physics.obstacles`): the
+camera's rays meet them and every renderer draws them; a map without gets none, the model it
+had before. The map itself is stored in the model (a ``<custom><numeric>`` field the physics never
 reads) so a renderer given only the model can still draw it. Cells sit where
 :class:`~cpp_mujoco.physics.geometry.GridGeometry` puts them (x east, y north, the map centred on
 the origin).
@@ -20,6 +22,7 @@ import mujoco
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
+from cpp_mujoco.physics.obstacles import OBSTACLE_GROUP, obstacle_boxes
 from cpp_mujoco.physics.quadrotor import quadrotor_xml
 
 with warnings.catch_warnings():
@@ -50,8 +53,10 @@ def scenery_fields(values: list[float]) -> list[tuple[str, list[float]]]:
 
 def scenery_numeric(grid_map: GridMap, cell_size: float, volume_height: float) -> list[float]:
     """What the arena stores in the model so :meth:`Scenery.from_model` can redraw the map:
-    H, W, cell size, no-fly volume height, then each cell's ``landing + 2·target + 4·nfz``."""
+    H, W, cell size, no-fly volume height, then each cell's ``landing + 2·target + 4·nfz +
+    8·obstacle``."""
     codes = grid_map.landing + 2 * grid_map.target.astype(int) + 4 * grid_map.nfz.astype(int)
+    codes = codes + 8 * grid_map.obstacle.astype(int)
     return [*grid_map.shape, cell_size, volume_height, *codes.ravel().tolist()]
 
 
@@ -80,6 +85,8 @@ def build_arena(grid_map: GridMap, config: PhysicsConfig, fov_side: int = 3) -> 
         "geom", name="ground", type="plane", size=(hx + margin, hy + margin, 0.1),
         rgba=(0.35, 0.35, 0.33, 1), contype=1, conaffinity=1, condim=3,
     )  # fmt: skip
+    if grid_map.has_obstacles:
+        _add_obstacles(arena, grid_map, config)
     # the map, for the renderer's scenery (physics/view/scenery.py); MuJoCo's physics never reads it
     values = scenery_numeric(grid_map, config.cell_size, 2 * config.altitude)
     for name, data in scenery_fields(values):
@@ -98,6 +105,20 @@ def build_arena(grid_map: GridMap, config: PhysicsConfig, fov_side: int = 3) -> 
     frame = arena.worldbody.attach(quad)
     frame.add("freejoint", name="root")
     return arena
+
+
+def _add_obstacles(arena: mjcf.RootElement, grid_map: GridMap, config: PhysicsConfig) -> None:
+    """One box geom per merged block of obstacle cells, without contacts: crashes into them are
+    the flight's geometric check (:func:`~cpp_mujoco.physics.obstacles.touching`)."""
+    boxes = obstacle_boxes(grid_map, config)
+    for k, (pos, size, rgba, building) in enumerate(
+        zip(boxes.centers, boxes.half_sizes, boxes.rgba(), boxes.building, strict=True)
+    ):
+        arena.worldbody.add(
+            "geom", name=f"{'building' if building else 'low_obstacle'}_{k}", type="box",
+            pos=tuple(pos), size=tuple(size), rgba=tuple(rgba), group=OBSTACLE_GROUP,
+            contype=0, conaffinity=0,
+        )  # fmt: skip
 
 
 def compile_arena(arena: mjcf.RootElement) -> mujoco.MjModel:

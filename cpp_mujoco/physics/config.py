@@ -23,10 +23,14 @@ from cpp_mujoco.physics.air.turbulence import check_level
 # fields that do not change how a calm-air move flies (so they do not change the energy unit)
 _NOT_CALIBRATED = {
     "wind_speed", "wind_direction", "gust_std", "gust_tau", "turbulence", "unit_margin",
-    "battery_cutoff_v", "return_guard", "gust_seed",
+    "battery_cutoff_v", "return_guard", "gust_seed", "building_height_m", "low_obstacle_height_m",
 }  # fmt: skip
 
 _INF = math.inf
+# m a low obstacle stays below the cruise altitude at least: the airframe reaches 0.36 m below the
+# camera, the controller holds the altitude within centimetres in calm air; the rest is room for
+# gusts pushing the UAV down
+LOW_OBSTACLE_CLEARANCE = 2.0
 # the first is the default; "forward-flight" changes what hovering and moving in wind cost
 POWER_MODELS = ("forward-flight", "momentum")  # the first is the default
 # field: (low, high, low included, high included); every field must also be a finite number.
@@ -35,6 +39,8 @@ POWER_MODELS = ("forward-flight", "momentum")  # the first is the default
 _RANGES: dict[str, tuple[float, float, bool, bool]] = {
     "cell_size": (0, _INF, False, False),
     "altitude": (0, _INF, False, False),
+    "building_height_m": (0, _INF, False, False),
+    "low_obstacle_height_m": (0, _INF, False, False),
     "timestep": (0, 0.02, False, True),
     "control_rate": (0, _INF, False, False),
     "camera_rate": (0, _INF, False, False),
@@ -161,6 +167,11 @@ class PhysicsConfig:
     # --- grid ↔ world
     cell_size: float = 4.0  # m, side of one grid cell on the ground
     altitude: float = 6.0  # m, cruise height of the camera above the ground
+    # --- obstacles, on maps that have them (cpp_mujoco/physics/obstacles.py): a building rises
+    # above the cruise altitude (blocks flight and view), a low obstacle stays below it with
+    # room to fly over (blocks view only)
+    building_height_m: float = 16.0  # m, the default cruise altitude + 10 m
+    low_obstacle_height_m: float = 2.0  # m, the default cruise altitude − 4 m
     # --- simulation and control rates
     timestep: float = 0.004  # s, MuJoCo step (Euler); the 40 ms rotor lag is 10 steps
     control_rate: float = 50.0  # Hz, geometric controller (a whole number of physics steps)
@@ -256,6 +267,21 @@ class PhysicsConfig:
             raise ValueError(
                 f"land_time_limit ({self.land_time_limit}) must be at least land_duration "
                 f"({self.land_duration})"
+            )
+
+    def check_obstacle_heights(self) -> None:
+        """Reject obstacle heights that contradict their kind at this altitude; checked where a
+        map with obstacles is built (a config flown only over open maps may set any altitude)."""
+        if self.building_height_m <= self.altitude:
+            raise ValueError(
+                f"building_height_m ({self.building_height_m:g}) must be above the cruise "
+                f"altitude ({self.altitude:g} m): a building blocks flight and view there"
+            )
+        if self.low_obstacle_height_m > self.altitude - LOW_OBSTACLE_CLEARANCE:
+            raise ValueError(
+                f"low_obstacle_height_m ({self.low_obstacle_height_m:g}) must be at most the "
+                f"cruise altitude ({self.altitude:g} m) - {LOW_OBSTACLE_CLEARANCE:g} m: a low "
+                "obstacle is flown over"
             )
 
     def gust_rng(self, rng: np.random.Generator) -> np.random.Generator:

@@ -4,8 +4,8 @@ steps — the one flight of the physics backend (``MuJoCo-v0`` is a batch of one
 Parts: the vehicle is the compiled model (:mod:`~cpp_mujoco.physics.arena`); the controller
 (:mod:`~cpp_mujoco.physics.control`) and the wind (:mod:`~cpp_mujoco.physics.air`) are
 swappable (:mod:`~cpp_mujoco.physics.parts`); the rotor power and the pack
-(:mod:`~cpp_mujoco.physics.power`) and the coverage camera (:mod:`~cpp_mujoco.physics.sensing`)
-are the flight's own.
+(:mod:`~cpp_mujoco.physics.power`), the coverage camera (:mod:`~cpp_mujoco.physics.sensing`) and
+the obstacle check (:mod:`~cpp_mujoco.physics.obstacles`) are the flight's own.
 
 Rates: MuJoCo steps every ``timestep``; the controller, wind, drag, energy and failure checks run
 every ``substeps`` physics steps; the camera takes a frame at ``camera_rate`` plus one at the
@@ -41,11 +41,12 @@ from mujoco.batch import Batch
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.physics.action import HOVER, LAND, MOVE, ActionResult, MacroActions
 from cpp_mujoco.physics.air.wind import Wind
-from cpp_mujoco.physics.airborne import AirborneSteps
+from cpp_mujoco.physics.airborne import AirborneSteps, reach_below
 from cpp_mujoco.physics.arena import build_arena, compile_arena
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.control.controller import GeometricController, References
 from cpp_mujoco.physics.geometry import GridGeometry
+from cpp_mujoco.physics.obstacles import ObstacleCrashes, obstacle_boxes
 from cpp_mujoco.physics.parts import Controller, WindModel
 from cpp_mujoco.physics.power.battery import CUTOFF, Battery, PackSpec
 from cpp_mujoco.physics.power.rotor import ForwardFlightPower, IntervalEnergy, PowerModel
@@ -128,9 +129,10 @@ class Flight:
         self._bad = sims.warning[:, mujoco.mjtWarning.mjWARN_BADQACC, 1]
         self._bad0 = np.zeros(n, dtype=self._bad.dtype)
         self._contacts = mujoco.MjData(model)  # a drone's MjData copied out, to read them
+        boxes = obstacle_boxes(grid_map, config) if grid_map.has_obstacles else None
         self.camera = CoverageCamera(
             model, sims.bind("cam_xpos"), sims.bind("cam_xmat"), self.state[:, 0], self.geo,
-            config, grid_map.target, coverage,
+            config, grid_map.target, coverage, obstacles=boxes, body=p.body_id,
         )  # fmt: skip
         self.coverage = coverage
         self.refs = References(n, self.controller.lead, config.land_duration, config.land_speed)
@@ -141,6 +143,10 @@ class Flight:
         self.nfz_violations = np.zeros(n, dtype=np.int64)
         self.max_track_error = np.zeros(n)
         self.no_fly = np.asarray(grid_map.nfz, dtype=bool).reshape(-1)
+        # obstacles crash a drone on either model, the contact-free one included (obstacles.py)
+        self.obstacles = None if boxes is None else ObstacleCrashes(
+            boxes, reach_below(model, self._frame, every_geom=True), n
+        )  # fmt: skip
         self.air = AirborneSteps(sims, model, self._frame, *self._live) if air_steps else None
         self._tick = Tick(self)
 

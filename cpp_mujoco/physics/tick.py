@@ -5,7 +5,9 @@ Why: as numpy arrays a tick is ≈ 150 calls over short arrays and costs about h
 MuJoCo's five physics steps between ticks at 128 drones (more than them at one drone); compiled,
 it is three calls (sense, control, power) that cost a few percent of them.
 
-The kernels flag what stays in Python, drone by drone and rarely: the failure messages, the
+On a map with obstacles the tick begins with the obstacle check
+(:class:`~cpp_mujoco.physics.obstacles.ObstacleCrashes`, compiled too). The kernels flag what
+stays in Python, drone by drone and rarely: the failure messages, the
 camera frames due, the ground contacts and time limits of landing or falling drones, the
 battery's overload and failsafe, a noise block that runs out, turbulence coefficients not yet
 tabled. A user's wind or controller part (:mod:`~cpp_mujoco.physics.parts`) is called here,
@@ -92,6 +94,8 @@ class Tick:
         K, f = self.k, self.f
         if a is not self._action:
             self._bind(a)
+        if f.obstacles is not None:  # a drone that touches an obstacle fails here
+            i = f.obstacles(i, f._live[0], a.res["failure"], a.flying)
         m, res = i.size, a.res
         code = self.code[:m]
         failed, due, go, check = K.sense(i, *self._sense, code, self.lists)

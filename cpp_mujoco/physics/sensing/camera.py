@@ -6,7 +6,9 @@ that quadrilateral are seen. A MuJoCo camera looks along its local −z with +y 
 the corner rays of a square image with half-angle θ are (±tanθ, ±tanθ, −1). A frame tests only a
 fixed window of rows and columns around the camera (those whose centres the nominal footprint can
 reach), in one compiled kernel for all drones whose frame is due
-(:func:`~cpp_mujoco.physics.sensing.kernels.frame`).
+(:func:`~cpp_mujoco.physics.sensing.kernels.frame`). On a map with obstacles a cell is seen only
+if the ray from the camera to its centre meets no obstacle first
+(:mod:`~cpp_mujoco.physics.sensing.occlusion`); a map without keeps the kernel above alone.
 """
 
 from __future__ import annotations
@@ -18,7 +20,9 @@ import numpy as np
 
 from cpp_mujoco.physics.config import PhysicsConfig
 from cpp_mujoco.physics.geometry import GridGeometry
-from cpp_mujoco.physics.sensing.kernels import corners, frame
+from cpp_mujoco.physics.obstacles import ObstacleBoxes
+from cpp_mujoco.physics.sensing.kernels import corners, frame, frame_near, mark_visible
+from cpp_mujoco.physics.sensing.occlusion import BEFORE, RayOcclusion
 
 Polygon = list[tuple[float, float]]
 
@@ -40,7 +44,8 @@ class CoverageCamera:
 
     ``cam_xpos`` (n, ncam, 3), ``cam_xmat`` (n, ncam, 9) and ``clock`` (n,) are live arrays of
     the drones' camera poses and times (the batch's bound fields: the pose MuJoCo computed in
-    each drone's last step)."""
+    each drone's last step). ``obstacles``: the map's boxes (None: none, nothing occludes);
+    ``body``: the quadrotor's body, which the rays leave out."""
 
     def __init__(
         self,
@@ -54,6 +59,8 @@ class CoverageCamera:
         coverage: np.ndarray,
         camera: str = "quadrotor/downward",
         min_down: float = 0.05,
+        obstacles: ObstacleBoxes | None = None,
+        body: int = -1,
     ):
         self.cam_id = cam = int(model.camera(camera).id)
         fovy = float(model.cam_fovy[cam])
@@ -78,6 +85,14 @@ class CoverageCamera:
             self.cos_max_tilt, min_down, self.nominal_half, 1.0 / geo.cell_size, geo.height,
             geo.width, self._kr, self._kc,
         ], dtype=float)  # fmt: skip
+        self.occlusion: RayOcclusion | None = None
+        if obstacles is not None and len(obstacles):
+            n, k = len(clock), self._kr * self._kc
+            self.occlusion = RayOcclusion(model, body, n, k)
+            self._box_lo, self._box_hi = obstacles.lo, obstacles.hi
+            self._cells = np.zeros((n, k), dtype=np.int64)
+            self._counts = np.zeros(n, dtype=np.int64)
+            self._rays_to = np.zeros((n, k, 3))
 
     def reset(self, i: int) -> None:
         self.next_frame[i] = 0.0
@@ -87,8 +102,21 @@ class CoverageCamera:
         drones = np.asarray(drones, dtype=np.int64)
         self.next_frame[drones] = self.clock[drones] + self.period
         newly = np.zeros(drones.size, dtype=np.int64)
-        frame(drones, self.cam_xpos, self.cam_xmat, self.rays, self._constants, self._x_of_col,
-              self._y_of_row, self.target, self.coverage, newly)  # fmt: skip
+        if self.occlusion is None:
+            frame(drones, self.cam_xpos, self.cam_xmat, self.rays, self._constants,
+                  self._x_of_col, self._y_of_row, self.target, self.coverage, newly)  # fmt: skip
+            return newly
+        m, occ = drones.size, self.occlusion
+        cells, counts, rays_to = self._cells[:m], self._counts[:m], self._rays_to[:m]
+        frame_near(drones, self.cam_xpos, self.cam_xmat, self.rays, self._constants,
+                   self._x_of_col, self._y_of_row, self.target, self.coverage, newly,
+                   self._box_lo, self._box_hi, cells, counts, rays_to)  # fmt: skip
+        near = np.flatnonzero(counts).tolist()
+        if near:
+            for j in near:
+                occ.cast(j, self.cam_xpos[drones[j]], rays_to[j], int(counts[j]))
+            mark_visible(drones, counts, cells, occ.geom, occ.dist, BEFORE, self.target,
+                         self.coverage, newly)  # fmt: skip
         return newly
 
     def footprint(self, i: int) -> Polygon | None:

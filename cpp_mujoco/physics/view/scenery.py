@@ -7,6 +7,9 @@ plane ever collides. So the model keeps the ground, the camera, the light and th
 ``update_scene``, once per frame, with the colours and places they had as model geoms.
 ``decorate(scene, seen)`` draws the cells the camera has seen lighter (the paper's convention),
 and a raised kerb around each landing area, so where the UAV may land reads from any view.
+Obstacles are model geoms (the camera's rays meet them, :mod:`~cpp_mujoco.physics.obstacles`), so
+every renderer draws them, in a building's or a low obstacle's colour; the scenery leaves out the
+no-fly volume of a building's cell, which the building's box already fills.
 
 The arena stores the map in the model (a ``<custom><numeric>`` field, which the physics never
 reads), so :meth:`Scenery.from_model` redraws it from a compiled model alone. No GL here: the
@@ -120,7 +123,10 @@ class Scenery:
             volume_height = 2 * config.altitude if volume_height is None else volume_height
         if geometry.height != grid_map.shape[0] or geometry.width != grid_map.shape[1]:
             raise ValueError(f"geometry {geometry} does not fit a {grid_map.shape} map")
-        self._build(grid_map.landing, grid_map.target, grid_map.nfz, geometry, volume_height)
+        self._build(
+            grid_map.landing, grid_map.target, grid_map.nfz, geometry, volume_height,
+            obstacle=grid_map.obstacle,
+        )  # fmt: skip
 
     @classmethod
     def from_model(cls, model: mujoco.MjModel) -> Scenery | None:
@@ -141,10 +147,13 @@ class Scenery:
         codes = values[4:].astype(int).reshape(h, w)
         self = cls.__new__(cls)
         layers = (codes & 1 > 0, codes & 2 > 0, codes & 4 > 0)
-        self._build(*layers, GridGeometry(h, w, float(values[2])), float(values[3]))
+        geometry = GridGeometry(h, w, float(values[2]))
+        self._build(*layers, geometry, float(values[3]), obstacle=codes & 8 > 0)
         return self
 
-    def _build(self, landing, target, nfz, geometry: GridGeometry, volume_height: float) -> None:
+    def _build(
+        self, landing, target, nfz, geometry: GridGeometry, volume_height: float, obstacle=None
+    ) -> None:
         self.geometry = geometry
         self.volume_height = volume_height
         xy = geometry.centers()
@@ -156,7 +165,10 @@ class Scenery:
         half = geometry.cell_size / 2
         self._tile_pos = np.column_stack([xy, np.full(n, TILE_HALF_HEIGHT)])
         self._tile_size = np.array([half - TILE_GAP / 2, half - TILE_GAP / 2, TILE_HALF_HEIGHT])
-        cells = np.flatnonzero(np.asarray(nfz, dtype=bool).ravel())
+        volumes = np.asarray(nfz, dtype=bool)
+        if obstacle is not None:  # a building's box stands where its no-fly volume would
+            volumes = volumes & ~np.asarray(obstacle, dtype=bool)
+        cells = np.flatnonzero(volumes.ravel())
         self._volume_pos = np.column_stack([xy[cells], np.full(len(cells), volume_height / 2)])
         self._volume_size = np.array([half, half, volume_height / 2])
         self._volume_rgba = np.array(NFZ_VOLUME_RGBA, dtype=np.float32)
