@@ -297,6 +297,12 @@ def in_page_tables() -> dict[Path, str]:
             load("transfer_abc_wind.json"), "results/transfer_abc_wind.json"
         )
         tables[docs / "agent.md"].append(("wind-transfer", table))
+    occlusion = sorted(RESULTS.glob("occlusion_city32-v1_fov*.json"))
+    if occlusion:
+        table = doc_tables.occlusion_table(
+            [load(path.name) for path in occlusion], [f"results/{p.name}" for p in occlusion]
+        )
+        tables.setdefault(docs / "physics.md", []).append(("occlusion", table))
     sets = [RESULTS / f"map_set_{name}.json" for name in ("heldout16-v1", "heldout32-v1")]
     if all(path.is_file() for path in sets):
         table = doc_tables.held_out_table(

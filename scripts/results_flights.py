@@ -5,6 +5,7 @@
     python scripts/results_flights.py transfer --budget-step 1 --wind-agents
                                                       # results/transfer_abc_wind.json
     python scripts/results_flights.py map-set --map-set heldout32-v1   # results/map_set_*.json
+    python scripts/results_flights.py map-set --map-set city32-v1 --no-agent
     python scripts/results_flights.py energy                      # results/action_energy.json
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
 
@@ -54,9 +55,10 @@ def transfer(workers: int, budget_step: int, wind_agents: bool = False) -> None:
     write(f"transfer_abc{suffix.replace('-', '_')}.json", {"command": command, "results": rows})
 
 
-def map_set(name: str) -> None:
-    """``cpp-mujoco evaluate --map-set NAME`` for the planners and the general agent on the grid
-    (every map, the whole protocol): results/map_set_<NAME>.json."""
+def map_set(name: str, agent: bool = True) -> None:
+    """``cpp-mujoco evaluate --map-set NAME`` for the planners and the general agent (not with
+    ``agent`` False: a set it does not fit, e.g. obstacles it cannot see) on the grid (every map,
+    the whole protocol): results/map_set_<NAME>.json."""
     import shutil
     import tempfile
 
@@ -64,7 +66,7 @@ def map_set(name: str) -> None:
 
     with tempfile.TemporaryDirectory() as out:
         args = ["evaluate", "--map-set", name, "--planner", "safe-greedy", "beam-search"]
-        code = cli([*args, "--agent", "general", "--out", out])
+        code = cli([*args, *(["--agent", "general"] if agent else []), "--out", out])
         if code:
             raise SystemExit(code)
         shutil.copyfile(Path(out) / f"grid_{name}.json", RESULTS / f"map_set_{name}.json")
@@ -143,6 +145,7 @@ def main(argv=None) -> int:
     )
     p.add_argument("family", choices=["planners", "transfer", "map-set", "energy", "wind-agents"])
     p.add_argument("--map-set", default="heldout16-v1", help="map-set: which set")
+    p.add_argument("--no-agent", action="store_true", help="map-set: the planners only")
     p.add_argument("--workers", type=int, default=2, help="transfer: MuJoCo worker processes")
     p.add_argument("--budget-step", type=int, default=10, help="transfer: every n-th budget")
     p.add_argument("--wind-agents", action="store_true", help="transfer: the wind-robust agents")
@@ -153,7 +156,7 @@ def main(argv=None) -> int:
     elif args.family == "transfer":
         transfer(args.workers, args.budget_step, args.wind_agents)
     elif args.family == "map-set":
-        map_set(args.map_set)
+        map_set(args.map_set, not args.no_agent)
     elif args.family == "wind-agents":
         wind_agents()
     else:

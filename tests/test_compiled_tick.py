@@ -13,6 +13,7 @@ from cpp_mujoco.physics.envs.vector import MuJoCoVectorEnv
 from cpp_mujoco.physics.power import kernels as compiled_power
 from cpp_mujoco.physics.power.battery import CUTOFF
 from cpp_mujoco.physics.sensing import camera
+from cpp_mujoco.physics.sensing import kernels as compiled_sensing
 from tests.twin_flights import (
     FAILURE_MOVES,
     MAP,
@@ -29,6 +30,7 @@ KERNELS = [
     (compiled_control, "control"),
     (compiled_power, "power"),
     (camera, "frame"),
+    (compiled_sensing, "_view"),  # the footprint, which frame calls through its module
     (airborne, "clear_of_ground"),
     (airborne, "changed"),
 ]

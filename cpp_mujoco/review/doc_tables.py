@@ -293,3 +293,32 @@ def wind_agents_table(data: dict, source: str) -> str:
         f"`{source}`, flown by `{data['command']}`.",
     ]
     return "\n".join(lines)
+
+
+def occlusion_table(files: list[dict], sources: list[str]) -> str:
+    """Physics vs grid coverage on a map set with obstacles, one row per field of view: the
+    target cells the physics camera counted and the grid did not (extra), and the reverse."""
+    lines = [
+        "| view | episodes | grid's seen target cells | physics only (extra) "
+        "| grid only (missing) | crashes |",
+        "|---|---|---|---|---|---|",
+    ]
+    for data in files:
+        t, first = data["totals"], data["results"][0]
+        side = first["conditions"]["fov_side"]
+        lines.append(
+            f"| {side}×{side} | {t['episodes']} | {t['grid_seen']:,} | {t['extra']} "
+            f"({t['extra_share']:.2%}) | {t['missing']} ({t['missing_share']:.2%}) "
+            f"| {t['crashes']} |"
+        )
+    first = files[0]["results"][0]
+    budgets = sorted({r["budget"] for d in files for r in d["results"]})
+    lines += [
+        "",
+        f"Map set {first['conditions']['map_set']['name']}, each map's first landing cell with "
+        f"budgets {', '.join(map(str, budgets))}: {first['policy']} on the grid, the same "
+        "actions in calm MuJoCo air. From "
+        + ", ".join(f"`{s}` (`{d['command']}`)" for s, d in zip(sources, files, strict=True))
+        + ".",
+    ]
+    return "\n".join(lines)
