@@ -285,6 +285,9 @@ def in_page_tables() -> dict[Path, str]:
         table = doc_tables.script_table(load("rated_wind.json"), "rated_wind",
                                         "results/rated_wind.json")  # fmt: skip
         wind_page.append(("rated-wind", table))
+    if (RESULTS / "wind_sweep.json").is_file():
+        table = doc_tables.script_table(load("wind_sweep.json"), "sweep", "results/wind_sweep.json")
+        wind_page.append(("wind-sweep", table))
     if wind_page:
         tables[docs / "wind.md"] = wind_page
     if (RESULTS / "wind_agents_grid.json").is_file():
