@@ -32,7 +32,7 @@ from cpp_mujoco.protocol.physics_engines import (
     make_env,
     records_to_arrays,
 )
-from cpp_mujoco.protocol.policy import Policy, as_policy, check_fits, policy_identity
+from cpp_mujoco.protocol.policy import Policy, as_policy, check_fits, check_view, policy_identity
 from cpp_mujoco.protocol.policy import policy_name as policy_label
 from cpp_mujoco.util.io import atomic_write_text, json_default
 
@@ -215,12 +215,7 @@ def evaluate(
     if config is None:  # the map's size class
         config = size_config(map_size(grid_map.shape))
     config, physics_kwargs = _split_options(backend, config, env_kwargs)
-    planned = getattr(policy, "fov_side", config.fov_side)
-    if planned != config.fov_side:  # it would plan for a camera the episodes do not fly
-        raise ValueError(
-            f"policy plans with a {planned}x{planned} view, the episodes see "
-            f"{config.fov_side}x{config.fov_side} (make_planner(..., fov_side=...))"
-        )
+    check_view(policy, config.fov_side)
     if budgets is None:
         budgets = protocol_budgets(config, budget_step)
     starts, budget_per_episode = protocol_episodes(grid_map, budgets)

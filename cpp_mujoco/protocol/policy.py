@@ -46,6 +46,17 @@ def check_fits(policy: Any, grid_map: Any, any_map: bool = False) -> str | None:
     return reason or None
 
 
+def check_view(policy: Any, fov_side: int) -> None:
+    """Refuse a policy that plans with another camera square than the episodes fly (a planner's
+    ``fov_side``): its plans would be for cells it does not see, or miss cells it does."""
+    planned = getattr(policy, "fov_side", fov_side)
+    if planned != fov_side:
+        raise ValueError(
+            f"policy plans with a {planned}x{planned} view, the episodes see "
+            f"{fov_side}x{fov_side} (make_planner(..., fov_side=...))"
+        )
+
+
 def start_episodes(policy: Any, num_episodes: int, seed: int | None = None) -> None:
     """Tell ``policy`` that ``num_episodes`` new episodes start (the batch of its next ``act``).
 
