@@ -174,6 +174,8 @@ def map_set_page(paths: list[Path]) -> str:
     for path in paths:
         data = json.loads(path.read_text(encoding="utf-8"))
         spec = data["map_set"]
+        agent = any("general" in row["policy"] for row in data["policies"])
+        planners_only = "" if agent else " --no-agent"
         parts += [
             "",
             f"## {spec['name']} ({spec['evaluated']} of its {spec['count']} maps, "
@@ -192,7 +194,8 @@ def map_set_page(paths: list[Path]) -> str:
             "",
             f"The {data['backend']} backend, budgets {budgets_text(data)}, version "
             f"{spec['version']} of the set. From `results/{path.name}`, flown by "
-            f"`{MAP_SET_COMMAND} --map-set {spec['name']}` (`cpp-mujoco evaluate --map-set`).",
+            f"`{MAP_SET_COMMAND} --map-set {spec['name']}{planners_only}` (`cpp-mujoco evaluate "
+            "--map-set`).",
         ]
     return "\n".join(parts) + "\n"
 
