@@ -40,10 +40,11 @@ PYTHON=${PYTHON:-python3}
 [ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
 # torch first, pinned: the CPU build; any other spec pulls gigabytes of CUDA packages
 .venv/bin/python -m pip install -q --disable-pip-version-check torch==2.13.0
-# ray: the optional distributed engine, installed here so its tests run; docs: the site CI builds.
+# ray: the optional distributed engine, installed here so its tests run; docs: the site CI builds;
+# site: the site command's shapely, pyproj and pymavlink, installed so its tests run.
 # uv resolves and installs the same releases as pip in a twentieth of the time (measured: 10 s
 # against 160 s); it keeps the torch above, and pip does the work where uv cannot be had.
-EXTRAS=".[dev,ray,docs]"
+EXTRAS=".[dev,ray,docs,site]"
 if .venv/bin/python -m pip install -q --disable-pip-version-check uv==0.13.9 &&
   .venv/bin/uv pip install -q --python .venv/bin/python -e "$EXTRAS"; then
   :

@@ -28,6 +28,7 @@ from cpp_mujoco.cli.parsers import (
     add_fly,
     add_maps,
     add_optimum,
+    add_site,
 )
 from cpp_mujoco.util.signals import exit_code, interruptible
 
@@ -70,6 +71,7 @@ def build_parser(train_options: bool = True) -> argparse.ArgumentParser:
     add_evaluate(sub)
     add_fly(sub)
     add_optimum(sub)
+    add_site(sub)
     add_train(sub, options=train_options)
     add_demo(sub)
     add_benchmark(sub)

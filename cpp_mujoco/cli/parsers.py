@@ -23,6 +23,7 @@ from cpp_mujoco.cli.options import (
     add_wind_options,
     add_workers_option,
     int_at_least,
+    positive_seconds,
 )
 
 DEFAULT_SIZE = 16  # maps generate: the maps' side
@@ -250,3 +251,128 @@ def add_benchmark(sub) -> None:
     )  # fmt: skip
     add_progress_option(p)
     p.set_defaults(func="cpp_mujoco.cli.benchmark:cmd_benchmark")
+
+
+def add_site(sub) -> None:
+    """``site grid`` and ``site plan``: a real site's polygons to a map, and to a mission. The
+    defaults named in the help are the configs' (:mod:`cpp_mujoco.sites`; a test keeps them
+    equal): an option left out is not passed on."""
+    p = sub.add_parser(
+        "site",
+        help="a real site (GeoJSON or KML polygons) to a grid map and to a checked "
+        "mission: QGroundControl plan, MAVLink waypoints, flown in MuJoCo (the site extra)",
+    )
+    p.set_defaults(func="cpp_mujoco.cli.site:cmd_site_plan")  # a sub-command is required
+    kinds = p.add_subparsers(dest="site_command", metavar="{grid,plan}", required=True)
+    grid = kinds.add_parser("grid", help="rasterise the site: the map PNG and its georeference")
+    plan = kinds.add_parser(
+        "plan", help="plan, export, read back, fly in MuJoCo and check a mission on the site"
+    )
+    for q in (grid, plan):
+        q.add_argument(
+            "site",
+            help="the site: a GeoJSON (.geojson, .json) or KML (.kml) file "
+            "of polygons tagged by a 'kind' property: target, no-fly, landing, "
+            "obstacle, boundary",
+        )
+        q.add_argument("--out", required=True, help="the folder for the files")
+        q.add_argument(
+            "--cell-size",
+            type=float,
+            metavar="M",
+            help="a cell's side on the ground, m (default: 4)",
+        )
+        q.add_argument(
+            "--heading",
+            type=float,
+            metavar="DEG",
+            help="where the grid's rows point, degrees clockwise from true north (default: 0)",
+        )
+        q.add_argument(
+            "--nfz-margin",
+            type=float,
+            metavar="M",
+            help="every waypoint at least this far from every no-fly polygon, m (default: 1.5)",
+        )
+    grid.set_defaults(func="cpp_mujoco.cli.site:cmd_site_grid")
+    plan.add_argument(
+        "--altitude",
+        type=float,
+        metavar="M",
+        help="the camera altitude above the take-off point, m (default: 6)",
+    )
+    plan.add_argument(
+        "--speed",
+        type=float,
+        metavar="M/S",
+        help="the cruise speed, a one-cell move's peak, m/s (default: 2.5)",
+    )
+    plan.add_argument(
+        "--battery-wh", type=float, metavar="WH", help="the pack's usable energy, Wh (default: 20)"
+    )
+    plan.add_argument(
+        "--reserve",
+        type=float,
+        metavar="SHARE",
+        help="share of the usable energy left at landing (default: 0.2)",
+    )
+    plan.add_argument(
+        "--climb-speed", type=float, metavar="M/S", help="the take-off climb, m/s (default: 1.5)"
+    )
+    plan.add_argument(
+        "--wind-speed",
+        type=float,
+        metavar="M/S",
+        help="steady wind the mission is planned and flown in, m/s (default: 0)",
+    )
+    plan.add_argument(
+        "--wind-direction",
+        type=float,
+        metavar="DEG",
+        help="where the wind blows from, degrees clockwise from true north (default: 0)",
+    )
+    plan.add_argument(
+        "--min-altitude",
+        type=float,
+        metavar="M",
+        help="the lowest flight altitude allowed, m (default: 2)",
+    )
+    plan.add_argument(
+        "--max-altitude",
+        type=float,
+        metavar="M",
+        help="the highest flight altitude allowed, m (default: 120)",
+    )
+    plan.add_argument(
+        "--planner",
+        choices=PLANNER_NAMES,
+        default="beam-search",
+        help="the reference planner that flies the episode; the wind planners "
+        "price moves by --wind-speed (default: %(default)s)",
+    )
+    plan.add_argument(
+        "--agent", help="fly an agent instead: a bundled name (general) or a checkpoint file"
+    )
+    add_any_map_option(plan)
+    plan.add_argument(
+        "--time-limit",
+        type=positive_seconds,
+        default=60.0,
+        metavar="S",
+        help="--planner optimal: the solver's time per solve (default: %(default)s)",
+    )
+    plan.add_argument(
+        "--start",
+        help="the take-off cell ROW,COL, a landing cell (default: the "
+        "one nearest the middle of the landing polygons)",
+    )
+    plan.add_argument(
+        "--firmware",
+        choices=("px4", "ardupilot"),
+        default="px4",
+        help="the autopilot the plan names (default: %(default)s)",
+    )
+    plan.add_argument(
+        "--seed", type=int_at_least(0), default=0, help="the episode's seed (default: %(default)s)"
+    )
+    plan.set_defaults(func="cpp_mujoco.cli.site:cmd_site_plan")
