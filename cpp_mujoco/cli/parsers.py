@@ -6,7 +6,8 @@ Each ``add_*(subparsers)`` adds one subcommand and sets ``func`` to its command 
 runs, so building the parser imports nothing numerical and ``--help`` answers at once. The
 commands live in one module each: :mod:`~cpp_mujoco.cli.maps` (``maps draw``, ``maps generate``,
 ``evaluate --map-set``), :mod:`~cpp_mujoco.cli.evaluate`, :mod:`~cpp_mujoco.cli.fly`,
-:mod:`~cpp_mujoco.cli.optimum`, :mod:`~cpp_mujoco.cli.demo`, :mod:`~cpp_mujoco.cli.benchmark`.
+:mod:`~cpp_mujoco.cli.optimum`, :mod:`~cpp_mujoco.cli.demo`, :mod:`~cpp_mujoco.cli.benchmark`,
+:mod:`~cpp_mujoco.cli.site`.
 """
 
 from __future__ import annotations
