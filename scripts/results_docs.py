@@ -255,6 +255,7 @@ def in_page_tables() -> dict[Path, str]:
     (``<!-- results:NAME:start -->`` … ``<!-- results:NAME:end -->``)."""
     from cpp_mujoco.maps import load_map
     from cpp_mujoco.review import doc_tables
+    from cpp_mujoco.review.benchmark_table import benchmark_table
     from cpp_mujoco.review.optimum_table import replace_between
 
     docs = ROOT / "docs"
@@ -303,6 +304,9 @@ def in_page_tables() -> dict[Path, str]:
             load("transfer_abc_wind.json"), "results/transfer_abc_wind.json"
         )
         tables[docs / "agent.md"].append(("wind-transfer", table))
+    if (RESULTS / "benchmark.json").is_file():
+        table = benchmark_table(load("benchmark.json"), "results/benchmark.json")
+        tables[docs / "scaling.md"] = [("benchmark", table)]
     occlusion = sorted(RESULTS.glob("occlusion_city32-v1_fov*.json"))
     if occlusion:
         table = doc_tables.occlusion_table(

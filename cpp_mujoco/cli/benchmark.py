@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
+import platform
 
 from tqdm import tqdm
 
@@ -45,12 +47,21 @@ def cmd_benchmark(args) -> None:
             f"unknown benchmark section(s) {sorted(unknown)}; known: {', '.join(SECTIONS)}"
         )
     check_output_file("--json", args.json, ".json")
+    load_before = os.getloadavg()[0]
     report = run_sections(args.only or list(SECTIONS), progress=progress_wanted(args))
+    machine = {  # what else ran decides the rates: a loaded machine gives lower bounds
+        "cpus": os.cpu_count(), "load_average_1m_before": load_before,
+        "load_average_1m_after": os.getloadavg()[0], "platform": platform.platform(),
+        "python": platform.python_version(),
+    }  # fmt: skip
     rows = [
         {"section": s, "measure": k, "value": f"{v:,.2f}" if isinstance(v, float) else v}
         for s, section in report.items()
         for k, v in section.items()
     ]
     print(format_table(rows, ["section", "measure", "value"]))
-    atomic_write_text(args.json, json.dumps(report, indent=2))
+    command = "cpp-mujoco benchmark" + (f" --only {' '.join(args.only)}" if args.only else "")
+    command += f" --json {args.json}"
+    data = {**report, "machine": machine, "command": command}
+    atomic_write_text(args.json, json.dumps(data, indent=2))
     print(f"\nwritten: {args.json}")

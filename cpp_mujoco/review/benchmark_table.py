@@ -1,0 +1,96 @@
+"""The scaling page's table from ``cpp-mujoco benchmark``'s report, beside the targets each
+measure is held to (``scripts/results_docs.py`` puts it between its markers)."""
+
+from __future__ import annotations
+
+# (label, how to read it from the report, format, the target it is held to)
+_BENCH_ROWS = (
+    (
+        "single grid env (`gym.make`, random actions)",
+        ("grid", "single_env_steps_per_s"),
+        "{:,.0f} steps/s",
+        "≥ 30,000",
+    ),
+    (
+        "batched grid env, 1024 envs",
+        ("grid", "batched_env_steps_per_s_1024_envs"),
+        "{:,.0f} env-steps/s",
+        "≥ 1,000,000",
+    ),
+    (
+        "full protocol, safe greedy, map A",
+        ("grid", "protocol_safe_greedy_s"),
+        "{:.1f} s",
+        "seconds",
+    ),
+    ("full protocol, beam search, map A", ("grid", "protocol_beam_search_s"), "{:.1f} s", ""),
+    (
+        "physics env steps/s ÷ raw `mj_step` (one env)",
+        ("physics", "overhead_ratio"),
+        "{:.2f}",
+        "≥ 0.5",
+    ),
+    ("physics real-time factor, one env", ("physics", "real_time_factor"), "{:,.0f}×", "≥ 300×"),
+    (
+        "batched physics env vs single env, grid actions/s in one process",
+        ("physics", "batched_vs_single"),
+        "{:.2f}×",
+        "≥ 2×",
+    ),
+    (
+        "batched physics steps/s ÷ raw `mj_step` of the arena model",
+        ("physics", "batched_physics_ratio"),
+        "{:.2f}",
+        "≥ 0.8",
+    ),
+    (
+        "the same ÷ raw `mj_step` of the contact-free copy",
+        ("physics", "batched_physics_ratio_vs_air"),
+        "{:.2f}",
+        "",
+    ),
+    (
+        "full MuJoCo protocol, map A, 2 worker processes",
+        ("physics", "protocol_A_local_2_workers_s"),
+        "{:.1f} s",
+        "≤ 2 min",
+    ),
+    (
+        "its MuJoCo stepping alone (the floor)",
+        ("physics", "protocol_A_stepping_floor_s"),
+        "{:.1f} s",
+        "",
+    ),
+    ("Ray, 1 → 2 CPUs, the same protocol", ("physics", "ray_scaling"), "{:.2f}×", "≥ 1.7×"),
+    ("DDQN training loop", ("training", "updates_per_s"), "{:.1f} updates/s", ""),
+    ("DDQN update (the paper's network, batch 128)", ("training", "update_ms"), "{:.1f} ms", ""),
+    (
+        "onboard camera 320×240, offscreen GL",
+        ("review", "onboard_render_320x240_fps"),
+        "{:.0f} frames/s",
+        "≥ 100",
+    ),
+    (
+        "Rerun recording added to a mission with video",
+        ("review", "rerun_overhead_ratio"),
+        "{:+.0%} wall time",
+        "≤ 25 %",
+    ),
+)
+
+
+def benchmark_table(data: dict, source: str) -> str:
+    """``cpp-mujoco benchmark``'s report as the scaling page's table, with the targets each
+    measure is held to and the machine's load while it ran (a loaded machine: lower bounds)."""
+    lines = ["| measure | value | target |", "|---|---|---|"]
+    for label, (section, key), fmt, target in _BENCH_ROWS:
+        if key in data.get(section, {}):
+            lines.append(f"| {label} | {fmt.format(data[section][key])} | {target} |")
+    m = data["machine"]
+    lines += [
+        "",
+        f"{m['cpus']} CPUs, load average {m['load_average_1m_before']:.1f} before and "
+        f"{m['load_average_1m_after']:.1f} after (other jobs running make these lower bounds); "
+        f"Python {m['python']}. From `{source}`, measured by `{data['command']}`.",
+    ]
+    return "\n".join(lines)
