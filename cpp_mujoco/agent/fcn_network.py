@@ -12,7 +12,8 @@ then the budget (and the wind, × ``WIND_GAIN``, with ``wind_inputs``; the moves
 ``home_input``, :mod:`~cpp_mujoco.agent.home_input`) is appended and dense layers give the 5
 Q-values, as in the other networks. The same weights fit any H×W.
 
-Layers (``conv_filters`` = C): the 5 grid channels plus three — the in-map mask and each cell's row
+Layers (``conv_filters`` = C): the 5 grid channels (6 with ``obstacle_input``: the obstacle layer,
+:mod:`~cpp_mujoco.agent.obstacle_input`) plus three — the in-map mask and each cell's row
 and column offset from the UAV ÷ ``max_side`` (pooling forgets where a cell lies; the offsets let
 "a target north of the UAV" differ from "a target south of it") — into a 3×3 stem and two residual
 3×3 layers at full resolution (C/2 filters: the near field, read at the UAV's cell), a 2×2 stride-2
@@ -40,15 +41,14 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from cpp_mujoco.agent.general_network import check_network_kwargs, num_scalars
-from cpp_mujoco.agent.network import (
-    IN_CHANNELS,
-    LANDING_CHANNEL,
-    NFZ_CHANNEL,
-    POSITION_CHANNEL,
-    TARGET_CHANNEL,
-    dense_head,
+from cpp_mujoco.agent.general_network import (
+    INPUT_FLAGS,
+    OBSTACLE_FLAG,
+    check_network_kwargs,
+    num_scalars,
 )
+from cpp_mujoco.agent.network import IN_CHANNELS, POSITION_CHANNEL, dense_head
+from cpp_mujoco.agent.obstacle_input import used_cells
 
 ARCHITECTURE = "general-fcn"  # what a checkpoint of this network records under "architecture"
 EXTRA_CHANNELS = 3  # in-map mask, row offset, column offset from the UAV
@@ -74,11 +74,13 @@ def dilations_for(max_side: int) -> tuple[int, ...]:
 
 class FCNQNetwork(nn.Module):
     """Q(s, ·) for a map of any size. ``forward(grid, scalars)`` as :class:`QNetwork`'s: grid
-    (B,5,H,W) float (any H, W; one size per call), scalars (B, :attr:`num_scalars`): the scaled
-    budget, then wind with ``wind_inputs`` and the moves home with ``home_input``
-    (:func:`~cpp_mujoco.agent.network.scalar_inputs`)."""
+    (B,5,H,W) float (any H, W; one size per call; (B,6,H,W) with ``obstacle_input``: the
+    obstacle layer last, :mod:`~cpp_mujoco.agent.obstacle_input`), scalars
+    (B, :attr:`num_scalars`): the scaled budget, then wind with ``wind_inputs`` and the moves
+    home with ``home_input`` (:func:`~cpp_mujoco.agent.network.scalar_inputs`)."""
 
     any_size = True  # GreedyAgent: no map-size check
+    grid_layers = ("stem.weight",)  # the layer reading the grid (its channels, then the extras)
 
     def __init__(
         self,
@@ -88,6 +90,7 @@ class FCNQNetwork(nn.Module):
         max_side: int = 32,
         wind_inputs: bool = False,
         home_input: bool = False,
+        obstacle_input: bool = False,
     ):
         super().__init__()
         if conv_filters < 2:
@@ -98,6 +101,9 @@ class FCNQNetwork(nn.Module):
             conv_filters=conv_filters, hidden=hidden, num_hidden=num_hidden, max_side=max_side,
             wind_inputs=bool(wind_inputs), home_input=bool(home_input),
         )  # fmt: skip
+        if obstacle_input:  # recorded only when on: older files rebuild as they were
+            self.kwargs[OBSTACLE_FLAG] = True
+        self.obstacle_input = bool(obstacle_input)
         self.max_side = max_side
         self.height = self.width = None  # any map size
         self.wind_inputs, self.home_input = bool(wind_inputs), bool(home_input)
@@ -105,7 +111,8 @@ class FCNQNetwork(nn.Module):
         self.dilations = dilations_for(max_side)
         self.reach = 2 * sum(self.dilations) + FINE_RADIUS  # cells seen from the UAV's cell
         c, fine = conv_filters, conv_filters // 2
-        self.stem = nn.Conv2d(IN_CHANNELS + EXTRA_CHANNELS, fine, 3, padding=1)
+        channels = IN_CHANNELS + self.obstacle_input + EXTRA_CHANNELS
+        self.stem = nn.Conv2d(channels, fine, 3, padding=1)
         self.fine = nn.ModuleList(nn.Conv2d(fine, fine, 3, padding=1) for _ in range(FINE_BLOCKS))
         self.down = nn.Conv2d(fine, c, 2, stride=2)
         self.coarse = nn.ModuleList(
@@ -119,7 +126,8 @@ class FCNQNetwork(nn.Module):
         return shape[0] * shape[1]
 
     def inputs(self, grid: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(the stem's input (B,8,H,W), mask (B,1,H,W), the UAV's flat cell (B,)). The input is
+        """(the stem's input (B,8,H,W), or (B,9,H,W) with the obstacle channel; mask (B,1,H,W);
+        the UAV's flat cell (B,)). The input is
         laid out channels-last: the convolutions ran 1.3–4× faster on it (measured, one CPU
         thread), so it is built that way (one copy) instead of converted."""
         b, _, h, w = grid.shape
@@ -175,18 +183,13 @@ def map_mask(grid: torch.Tensor) -> torch.Tensor:
     """(B,1,H,W) float: 1 on the map's extent, 0 on the padding after it.
 
     The extent is the top-left rectangle up to the last row and the last column holding a cell
-    that is not plain no-fly (no-fly and neither landing nor target) or that holds the UAV.
+    that is not plain no-fly (no-fly and neither landing, target, the UAV nor — with the obstacle
+    channel — an obstacle: :func:`~cpp_mujoco.agent.obstacle_input.used_cells`).
     Padding adds exactly such cells at the bottom and right, so a padded map has the extent of
     the map itself. A map whose own last rows or columns are plain no-fly loses them as well —
     the same to the task: neither can be flown over nor covered (the global-local network sees
     outside the map as no-fly too). Coverage is not read, so the extent holds for an episode."""
-    plain = (
-        (grid[:, NFZ_CHANNEL] > 0.5)
-        & (grid[:, LANDING_CHANNEL] <= 0.5)
-        & (grid[:, TARGET_CHANNEL] <= 0.5)
-        & (grid[:, POSITION_CHANNEL] <= 0.5)
-    )
-    used = ~plain  # (B,H,W)
+    used = used_cells(grid)  # (B,H,W)
     rows = used.any(dim=2).flip(1).cumsum(1).flip(1) > 0  # a used cell in this row or below
     cols = used.any(dim=1).flip(1).cumsum(1).flip(1) > 0
     return (rows[:, :, None] & cols[:, None, :]).unsqueeze(1).to(grid.dtype)
@@ -194,4 +197,4 @@ def map_mask(grid: torch.Tensor) -> torch.Tensor:
 
 def check_fcn_kwargs(kwargs: object) -> str | None:
     """None if ``kwargs`` can build a :class:`FCNQNetwork`, else what is wrong."""
-    return check_network_kwargs(kwargs, KWARG_RANGES, "fcn")
+    return check_network_kwargs(kwargs, KWARG_RANGES, "fcn", (*INPUT_FLAGS, OBSTACLE_FLAG))

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.map_pool import TRAIN_SEEDS, VALIDATION_SEEDS, check_seeds
-from cpp_mujoco.map_sets.generator import MIN_SIZE
+from cpp_mujoco.map_sets.generator import FAMILIES, MIN_SIZE
 from cpp_mujoco.map_sets.size_classes import budget_range
 from cpp_mujoco.maps import MAX_SIDE
 
@@ -38,6 +38,10 @@ class GeneralTrainConfig(TrainConfig):
     # chance a generated training map has a wall across it with one door (the generator's
     # door_wall; 0: the maps of runs from before the option). Validation maps keep the default
     door_walls: float = 0.0
+    # the generator's family of the training and validation maps: "paper" (the paper-style maps
+    # of every run before the option) or "city" (streets and buildings with obstacles that hide
+    # what lies behind them: needs obstacle_input)
+    map_family: str = "paper"
     # maps a user brings (bundled names or PNG paths: the paper's A B C, a site) trained beside
     # the generated ones, each with its size class's budgets and demonstrations on every one
     named_maps: tuple[str, ...] = ()
@@ -93,6 +97,11 @@ class GeneralTrainConfig(TrainConfig):
     # leads to until the 3×3 view holds an unseen target (:mod:`~cpp_mujoco.agent.target_input`);
     # with --init-from a network without it, the new inputs start at zero weight
     target_input: bool = False
+    # the network also reads the map's obstacle layer, one more grid channel
+    # (:mod:`~cpp_mujoco.agent.obstacle_input`; zeros on maps without obstacles): without it a
+    # policy refuses maps with obstacles. Either architecture; with --init-from a network without
+    # it, the new channel starts at zero weight. Off: the networks of runs before the option
+    obstacle_input: bool = False
     # train on every named map's images — its 8 rotations and mirror images (a square map;
     # :mod:`cpp_mujoco.maps.symmetry`) — so the network learns the site, not one orientation of it
     named_symmetries: bool = False
@@ -135,6 +144,17 @@ class GeneralTrainConfig(TrainConfig):
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if not 0.0 <= self.door_walls <= 1.0:  # NaN fails too
             raise ValueError(f"door_walls is a chance in 0..1, got {self.door_walls}")
+        if self.map_family not in FAMILIES:
+            raise ValueError(
+                f"map_family must be one of {', '.join(FAMILIES)}, got {self.map_family!r}"
+            )
+        if self.map_family != "paper" and self.door_walls:
+            raise ValueError("door_walls are walls of the paper-style maps (map_family=paper)")
+        if self.map_family == "city" and not self.obstacle_input:
+            raise ValueError(
+                "city maps have obstacles that hide what the camera sees: train them with "
+                "obstacle_input=true (a network without it cannot fly them)"
+            )
         if not 0.0 <= self.named_share < 1.0:  # NaN fails too
             raise ValueError(f"named_share must lie in [0, 1), got {self.named_share}")
         if self.named_demo_budget_step < 0:
@@ -198,6 +218,14 @@ class GeneralTrainConfig(TrainConfig):
         """Maps of each size the demonstrations fly."""
         return min(self.demo_maps_per_size, self.maps_per_size)
 
+    def generator_options(self, validation: bool = False) -> dict:
+        """The generator options of the training maps (``validation``: of the validation maps,
+        which keep the default door walls); empty for the defaults, so pools and their
+        identities stay as they were before the options."""
+        family = {"family": self.map_family} if self.map_family != "paper" else {}
+        walls = {"door_wall": self.door_walls} if self.door_walls and not validation else {}
+        return {**family, **walls}
+
     def network_kwargs(self) -> dict:
         """The arguments of :attr:`architecture`'s network: :class:`~cpp_mujoco.agent.
         general_network.GeneralQNetwork` or :class:`~cpp_mujoco.agent.fcn_network.FCNQNetwork`."""
@@ -209,4 +237,5 @@ class GeneralTrainConfig(TrainConfig):
             "home_input": self.home_input,
             "wind_inputs": bool(self.wind_max_speed),  # a wind agent observes the wind
             **({"target_input": True} if self.target_input else {}),
+            **({"obstacle_input": True} if self.obstacle_input else {}),
         }

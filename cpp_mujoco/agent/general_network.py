@@ -17,7 +17,10 @@ three dense layers of 256 and the 5 Q-values. Every tensor after the centring ha
 shape, so one set of weights flies every map size; and because the canvas has a fixed side for
 all maps up to ``max_side``, a map padded with no-fly cells gives exactly the Q-values of the
 map itself — a mixed 16/32 minibatch is padded to 32×32 and stacked (:func:`pad_grids`). The
-views are computed from the map without building the canvas (:func:`centred_views`).
+views are computed from the map without building the canvas (:func:`centred_views`). With
+``obstacle_input`` the grid has a sixth channel, the obstacle layer
+(:mod:`~cpp_mujoco.agent.obstacle_input`), zero outside the map and on the padding like every
+channel but no-fly.
 
 The alternative, measured against it: :mod:`cpp_mujoco.agent.fcn_network`, fully convolutional
 with global pooling (no flatten at all, also size-independent, but it must learn long-range
@@ -50,15 +53,19 @@ KWARG_RANGES = {
 }
 WIND_SCALARS = 3  # east, north and speed (network.scalar_inputs)
 INPUT_FLAGS = ("wind_inputs", "home_input")  # optional bool network_kwargs: the scalar inputs
+# optional bool network_kwargs, recorded only when on (files from before them rebuild as they were)
+OBSTACLE_FLAG, TARGET_FLAG = "obstacle_input", "target_input"
 
 
 class GeneralQNetwork(nn.Module):
     """Q(s, ·) for a map of any size. ``forward(grid, scalars)`` as :class:`QNetwork`'s: grid
-    (B,5,H,W) float (any H, W; one size per call), scalars (B, :attr:`num_scalars`): the scaled
-    budget, then wind with ``wind_inputs`` and the moves home with ``home_input``
-    (:func:`~cpp_mujoco.agent.network.scalar_inputs`)."""
+    (B,5,H,W) float (any H, W; one size per call; (B,6,H,W) with ``obstacle_input``: the
+    obstacle layer last, :mod:`~cpp_mujoco.agent.obstacle_input`), scalars
+    (B, :attr:`num_scalars`): the scaled budget, then wind with ``wind_inputs`` and the moves
+    home with ``home_input`` (:func:`~cpp_mujoco.agent.network.scalar_inputs`)."""
 
     any_size = True  # GreedyAgent: no map-size check
+    grid_layers = ("local_conv.0.weight", "global_conv.0.weight")  # the layers reading the grid
 
     def __init__(
         self,
@@ -72,6 +79,7 @@ class GeneralQNetwork(nn.Module):
         wind_inputs: bool = False,
         home_input: bool = False,
         target_input: bool = False,
+        obstacle_input: bool = False,
     ):
         super().__init__()
         if local_size % 2 != 1:
@@ -89,15 +97,17 @@ class GeneralQNetwork(nn.Module):
             conv_filters=conv_filters, kernel_size=kernel_size, hidden=hidden,
             num_hidden=num_hidden, wind_inputs=bool(wind_inputs), home_input=bool(home_input),
         )  # fmt: skip
-        if target_input:  # recorded only when on: files from before the option rebuild as they were
-            self.kwargs["target_input"] = True
-        self.target_input = bool(target_input)
+        for flag, on in ((TARGET_FLAG, target_input), (OBSTACLE_FLAG, obstacle_input)):
+            if on:  # recorded only when on: files from before the option rebuild as they were
+                self.kwargs[flag] = True
+        self.target_input, self.obstacle_input = bool(target_input), bool(obstacle_input)
         self.local_size, self.global_size, self.max_side = local_size, global_size, max_side
         self.height = self.width = None  # any map size
         self.wind_inputs, self.home_input = bool(wind_inputs), bool(home_input)
         self.num_scalars = num_scalars(self.wind_inputs, self.home_input)
-        self.local_conv = _conv_pair(conv_filters, kernel_size)
-        self.global_conv = _conv_pair(conv_filters, kernel_size)
+        channels = IN_CHANNELS + self.obstacle_input
+        self.local_conv = _conv_pair(channels, conv_filters, kernel_size)
+        self.global_conv = _conv_pair(channels, conv_filters, kernel_size)
         features = conv_filters * ((local_size - shrink) ** 2 + (global_size - shrink) ** 2)
         # the inputs before the moves to new targets (target_input.widen_for_target_input)
         self.features_before_target = features + self.num_scalars
@@ -128,9 +138,9 @@ class GeneralQNetwork(nn.Module):
         return self.head(torch.cat(parts, dim=1))
 
 
-def _conv_pair(filters: int, kernel_size: int) -> nn.Sequential:
+def _conv_pair(channels: int, filters: int, kernel_size: int) -> nn.Sequential:
     return nn.Sequential(
-        nn.Conv2d(IN_CHANNELS, filters, kernel_size),
+        nn.Conv2d(channels, filters, kernel_size),
         nn.ReLU(),
         nn.Conv2d(filters, filters, kernel_size),
         nn.ReLU(),
@@ -245,7 +255,8 @@ def pad_grids(grid: np.ndarray, side: int) -> np.ndarray:
 
 def check_general_kwargs(kwargs: object) -> str | None:
     """None if ``kwargs`` can build a :class:`GeneralQNetwork`, else what is wrong."""
-    return check_network_kwargs(kwargs, KWARG_RANGES, "general", (*INPUT_FLAGS, "target_input"))
+    flags = (*INPUT_FLAGS, TARGET_FLAG, OBSTACLE_FLAG)
+    return check_network_kwargs(kwargs, KWARG_RANGES, "general", flags)
 
 
 def widen_for_wind_inputs(state: dict[str, torch.Tensor], network: GeneralQNetwork) -> dict:

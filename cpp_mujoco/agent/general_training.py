@@ -34,6 +34,7 @@ from cpp_mujoco.agent.general_network import GeneralQNetwork, widen_for_wind_inp
 from cpp_mujoco.agent.map_pool import MapPool, MapwiseGuide
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay, record_pool_demonstrations
+from cpp_mujoco.agent.obstacle_input import widen_for_obstacle_input
 from cpp_mujoco.agent.target_input import widen_for_target_input
 from cpp_mujoco.agent.training_parts import TrainingParts
 from cpp_mujoco.agent.training_state import RESUMABLE_CHANGES, changed_settings
@@ -62,8 +63,8 @@ def build_network(config: GeneralTrainConfig) -> GeneralQNetwork | FCNQNetwork:
 
 def initial_general_weights(config: GeneralTrainConfig) -> dict | None:
     """The weights ``config.init_from`` names (a general agent or run checkpoint of the config's
-    very network, or of it without ``target_input``: widened), or None; :class:`CheckpointError`
-    for any other file."""
+    very network, or of it without ``target_input`` or ``obstacle_input``: widened), or None;
+    :class:`CheckpointError` for any other file."""
     if not config.init_from:
         return None
     path = Path(config.init_from)
@@ -75,6 +76,9 @@ def initial_general_weights(config: GeneralTrainConfig) -> dict | None:
     widen = config.target_input and known and "target_input" not in stored
     if widen:  # a network without the moves to new targets: they start at zero weight
         kwargs = {k: v for k, v in kwargs.items() if k != "target_input"}
+    blind = config.obstacle_input and known and "obstacle_input" not in stored
+    if blind:  # a network without the obstacle channel: it starts at zero weight
+        kwargs = {k: v for k, v in kwargs.items() if k != "obstacle_input"}
     calm = config.architecture == "global-local" and bool(kwargs.get("wind_inputs"))
     calm = calm and known and stored.get("wind_inputs") is False
     if calm:  # a calm-air network into a wind run: the wind inputs start at zero weight
@@ -85,6 +89,8 @@ def initial_general_weights(config: GeneralTrainConfig) -> dict | None:
             f"--init-from needs this run's network: {arch} {kwargs}"
         )
     weights = state["network"]
+    if blind:
+        weights = widen_for_obstacle_input(weights, network.grid_layers)
     if calm:
         weights = widen_for_wind_inputs(weights, network)
     if widen:
@@ -95,14 +101,20 @@ def initial_general_weights(config: GeneralTrainConfig) -> dict | None:
 def training_pool(config: GeneralTrainConfig, per_size: int | None = None) -> MapPool:
     """The generated training maps (the first ``per_size`` of each size if given: a check)
     plus the config's named ones (``MapError`` for a name or file that is not a map,
-    ``ValueError`` for one that does not fit)."""
-    options = {"door_wall": config.door_walls} if config.door_walls else {}
+    ``ValueError`` for one that does not fit, or has obstacles the network does not read)."""
+    options = config.generator_options()
     pool = MapPool.generate(
         config.sizes, per_size or config.maps_per_size, config.map_seed, **options
     )
     if not config.named_maps:
         return pool
     named = [load_map(name) for name in config.named_maps]
+    for grid_map in named:
+        if grid_map.has_obstacles and not config.obstacle_input:
+            raise ValueError(
+                f"map {grid_map.label} has obstacles that hide what the camera sees: train "
+                "with obstacle_input=true (a network without it cannot fly the map)"
+            )
     if config.named_symmetries:
         named = [image for grid_map in named for image in map_images(grid_map)]
     return pool.with_named(named)
@@ -126,8 +138,9 @@ class MapPoolSource:
         named = f" + {', '.join(c.named_maps)}" if c.named_maps else ""
         named += " and their 8 images" if named and c.named_symmetries else ""
         generated = len(self.pool) - len(self.pool.named)
+        family = "city " if c.map_family == "city" else ""
         wind = f", wind up to {c.wind_max_speed:g} m/s" if c.wind else ""
-        return f"general ({generated} generated maps{named}, sizes {sizes}{wind})"
+        return f"general ({generated} generated {family}maps{named}, sizes {sizes}{wind})"
 
     def budget_step(self, full: bool) -> int:
         return self.config.final_budget_step if full else self.config.eval_budget_step
@@ -189,7 +202,8 @@ def general_parts(config: GeneralTrainConfig, init: dict | None = None) -> Train
     # validation episode draws its wind, and the return rule keeps the wind planners'
     # margin; training flies the config's crash reward, validation the paper's
     pool = training_pool(c).flown_with(c.wind, c.wind_margin, c.grid_config.rewards)
-    val_pool = MapPool.generate(c.sizes, c.val_maps_per_size, c.val_seed)
+    options = c.generator_options(validation=True)
+    val_pool = MapPool.generate(c.sizes, c.val_maps_per_size, c.val_seed, **options)
     val_pool = val_pool.flown_with(c.wind, c.wind_margin)
 
     def network(config: GeneralTrainConfig) -> GeneralQNetwork | FCNQNetwork:
@@ -204,7 +218,7 @@ def general_parts(config: GeneralTrainConfig, init: dict | None = None) -> Train
     return TrainingParts(
         maps=MapPoolSource(c, pool, val_pool),
         env=MultiMapVectorEnv(pool, c.num_envs, c.episodes_per_map, c.named_share),
-        replay=MultiMapReplay(c.buffer_size, c.num_envs, pool, c.n_step, c.gamma),
+        replay=MultiMapReplay(c.buffer_size, c.num_envs, pool, c.n_step, c.gamma, c.obstacle_input),
         network=network,
         guide=guide,
         demos=pool_demonstrations(c, pool) if c.demo_fraction > 0 else None,
@@ -228,7 +242,7 @@ def pool_demonstrations(config: GeneralTrainConfig, pool: MapPool):
         steps = [s for s, keep in zip(steps, kept, strict=True) if keep]
     return record_pool_demonstrations(
         pool, ids, make_planner(c.demo_planner, c.wind_margin), c.n_step, c.gamma,
-        steps, c.named_demo_share,
+        steps, c.named_demo_share, c.obstacle_input,
     )  # fmt: skip
 
 

@@ -12,18 +12,21 @@ optimistic.
 
 Maps of different sizes share a minibatch padded to the pool's largest side with no-fly cells
 (:func:`~cpp_mujoco.agent.general_network.pad_grids` says why that changes nothing for the
-network); coverage is stored as packed bits of that padded layout (:meth:`MapPool.grids`).
+network); coverage is stored as packed bits of that padded layout (:meth:`MapPool.grids`). Each
+map's obstacle layer (:attr:`MapPool.obstacles`, zeros on a map without obstacles and on the
+padding) is a property of the map, so a stored state needs nothing more to rebuild it.
 """
 
 from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
 from cpp_mujoco.agent.home_input import home_after, home_field
-from cpp_mujoco.agent.network import NFZ_CHANNEL
+from cpp_mujoco.agent.network import NFZ_CHANNEL, OBSTACLE_CHANNEL
 from cpp_mujoco.grid.mdp import GridConfig, Rewards
 from cpp_mujoco.grid.return_rule import paid_actions
 from cpp_mujoco.grid.way_home import ReturnMargin
@@ -128,6 +131,22 @@ class MapPool:
         """The wind option the pool's maps are flown in (None: calm air)."""
         return self.configs[0].wind if self.configs else None
 
+    @cached_property
+    def obstacles(self) -> np.ndarray:
+        """(M,side,side) int8, read-only: each map's obstacle layer padded with zeros (the
+        multi-map env's ``obstacle`` observation, the obstacle channel of :meth:`grids`)."""
+        layers = np.zeros((len(self), self.side, self.side), dtype=np.int8)
+        for i, grid_map in enumerate(self.maps):
+            h, w = grid_map.shape
+            layers[i, :h, :w] = grid_map.obstacle
+        layers.flags.writeable = False
+        return layers
+
+    @cached_property
+    def has_obstacles(self) -> bool:
+        """Whether some map of the pool has obstacles (its observations carry the layer)."""
+        return any(m.has_obstacles for m in self.maps)
+
     @property
     def named(self) -> np.ndarray:
         """Indices of the maps that were not generated (:meth:`with_named`)."""
@@ -186,17 +205,26 @@ class MapPool:
         after = self._after[map_index, np.asarray(position).reshape(-1)]
         return paid_actions(after, budget, wind, self.margin)
 
-    def grids(self, map_index: np.ndarray, coverage_bits: np.ndarray, position: np.ndarray):
+    def grids(
+        self,
+        map_index: np.ndarray,
+        coverage_bits: np.ndarray,
+        position: np.ndarray,
+        obstacle: bool = False,
+    ) -> np.ndarray:
         """(b,5,side,side) float32 network input of stored states: the map's layers, the
-        unpacked coverage (padded layout) and the one-hot ``position`` (flat padded cell)."""
+        unpacked coverage (padded layout) and the one-hot ``position`` (flat padded cell);
+        ``obstacle``: (b,6,side,side), the map's obstacle layer last (:attr:`obstacles`)."""
         b, side = map_index.size, self.side
-        grid = np.empty((b, 5, side, side), dtype=np.float32)
+        grid = np.empty((b, 5 + bool(obstacle), side, side), dtype=np.float32)
         grid[:, :3] = self.layers[map_index]
         cells = side * side
         grid[:, 3] = np.unpackbits(coverage_bits, axis=-1, count=cells).reshape(b, side, side)
         pos = np.zeros((b, cells), dtype=np.float32)
         pos[np.arange(b), position] = 1.0
         grid[:, 4] = pos.reshape(b, side, side)
+        if obstacle:
+            grid[:, OBSTACLE_CHANNEL] = self.obstacles[map_index]
         return grid
 
 
@@ -244,6 +272,7 @@ class MapwiseGuide:
             part = {}
             for key, value in obs.items():
                 value = np.asarray(value)[rows]
-                part[key] = value[..., :h, :w] if key in ("map", "coverage", "position") else value
+                cells = key in ("map", "coverage", "position", "obstacle")
+                part[key] = value[..., :h, :w] if cells else value
             actions[rows] = self.planner.act(part)
         return actions

@@ -9,7 +9,12 @@ cost is one MDP built per episode.
 
 Observations are those of the grid env padded to the pool's side (:class:`MapPool`): ``map`` is
 no-fly outside the map, coverage and position are zero there; ``map_index`` says which pool map a
-row is on. Resets happen in the step that ended the episode (gymnasium's ``SAME_STEP``), with
+row is on. A pool with obstacles adds each row's ``obstacle`` layer (zeros on its maps without
+obstacles and on the padding), whatever network trains on it: as the grid env does on a map with
+obstacles, so the guide planner sees what the camera sees and the keys never change mid-run
+(a network without the obstacle input cannot fly such a pool; the config refuses that).
+
+Resets happen in the step that ended the episode (gymnasium's ``SAME_STEP``), with
 ``info["final_info"]`` holding the ended episodes' ``landed`` and ``coverage_ratio``, as the
 per-map :class:`~cpp_mujoco.agent.train.Trainer`'s collection reads them.
 """
@@ -114,7 +119,7 @@ class MultiMapVectorEnv:
             budget[i] = np.floor(mdp.budget[0])
             safety[i] = mdp.rejected[0]
             wind[i] = mdp.winds.vector[0]
-        return {
+        obs = {
             "map": self.pool.layers[self.map_index],
             "coverage": coverage,
             "position": position,
@@ -123,6 +128,9 @@ class MultiMapVectorEnv:
             "wind": wind,
             "map_index": self.map_index.copy(),
         }
+        if self.pool.has_obstacles:
+            obs["obstacle"] = self.pool.obstacles[self.map_index]
+        return obs
 
     # ------------------------------------------------------------------ saving and restoring
     def state_dict(self) -> dict[str, Any]:

@@ -5,6 +5,8 @@ its map's index in the pool, and coverage is kept as packed bits of the pool's p
 (128 bytes a state on 32×32, 8× less than bools), so a 200,000-transition memory takes about
 35 MB. The n-step windows are read exactly as in :class:`ReplayBuffer` (inherited): a window ends
 at a termination, and a slot changes map only when an episode ends, so no window spans two maps.
+For a network with the obstacle input the states are rebuilt with their map's obstacle layer
+(:meth:`MapPool.grids`): a property of the map, so nothing more is stored per state.
 
 Demonstrations (DQfD) are recorded map by map with the per-map recorder, then kept compact: each
 recorded state once, and per transition its n-step return, discount and the index of its
@@ -25,11 +27,21 @@ from cpp_mujoco.protocol.evaluate import protocol_budgets
 
 
 class MultiMapReplay(ReplayBuffer):
-    """:class:`ReplayBuffer` whose rows also hold each state's map (``map_index``)."""
+    """:class:`ReplayBuffer` whose rows also hold each state's map (``map_index``);
+    ``obstacle_input``: its states are rebuilt with the obstacle channel."""
 
-    def __init__(self, capacity: int, num_envs: int, pool: MapPool, n_step: int, gamma: float):
+    def __init__(
+        self,
+        capacity: int,
+        num_envs: int,
+        pool: MapPool,
+        n_step: int,
+        gamma: float,
+        obstacle_input: bool = False,
+    ):
         # not ReplayBuffer.__init__: that stores one map and unpacked (rows, envs, H·W) coverage
         self.pool, self.num_envs = pool, num_envs
+        self.obstacle_input = obstacle_input
         self.rows = max(capacity // num_envs, n_step + 2)
         self.capacity = self.rows * num_envs
         self.n_step, self.gamma = n_step, gamma
@@ -55,7 +67,7 @@ class MultiMapReplay(ReplayBuffer):
     def _state(self, t: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, ...]:
         """As :meth:`ReplayBuffer._state`, each row on its own map (moves home by map index)."""
         index, position = self.map_index[t, e], self.position[t, e]
-        grid = self.pool.grids(index, self.coverage[t, e], position)
+        grid = self.pool.grids(index, self.coverage[t, e], position, self.obstacle_input)
         home = self.pool.moves_home(index, position)
         return grid, self.budget[t, e][:, None], self.wind[t, e], home
 
@@ -100,6 +112,7 @@ class PooledDemonstrations:
     landing_ratio: float  # the planner's, mean over the recorded maps
     coverage_ratio: float
     named_share: float = 0.0  # of each minibatch from the pool's named maps (0: uniform)
+    obstacle_input: bool = False  # states rebuilt with the obstacle channel (MapPool.grids)
 
     def __post_init__(self) -> None:
         is_named = np.isin(self.map_index, self.pool.named)
@@ -124,7 +137,7 @@ class PooledDemonstrations:
 
     def _states(self, i: np.ndarray) -> tuple[np.ndarray, ...]:
         index, position = self.map_index[i], self.position[i]
-        grid = self.pool.grids(index, self.coverage[i], position)
+        grid = self.pool.grids(index, self.coverage[i], position, self.obstacle_input)
         home = self.pool.moves_home(index, position)
         return grid, self.budget[i][:, None], self.wind[i], home
 
@@ -152,10 +165,11 @@ def record_pool_demonstrations(
     gamma: float,
     budget_step: int | list[int] = 1,
     named_share: float = 0.0,
+    obstacle_input: bool = False,
 ) -> PooledDemonstrations:
     """``planner`` over every landing cell × every ``budget_step``-th budget (one step for all,
     or one per map) of each map ``map_ids`` of the pool (:func:`record_demonstrations`), kept
-    compact; ``named_share``: see :class:`PooledDemonstrations`."""
+    compact; ``named_share``, ``obstacle_input``: see :class:`PooledDemonstrations`."""
     steps = [budget_step] * len(map_ids) if isinstance(budget_step, int) else list(budget_step)
     if len(steps) != len(map_ids):
         raise ValueError(f"{len(steps)} budget steps for {len(map_ids)} maps")
@@ -198,4 +212,5 @@ def record_pool_demonstrations(
         landing_ratio=float(np.mean(landing)),
         coverage_ratio=float(np.mean(coverage)),
         named_share=named_share,
+        obstacle_input=obstacle_input,
     )

@@ -11,10 +11,11 @@ its east and north components and its speed, times :data:`WIND_GAIN` — three m
 first dense layer.
 
 A general network (:mod:`~cpp_mujoco.agent.general_network`) may also read the moves home
-(``home_input``, :mod:`~cpp_mujoco.agent.home_input`): the fewest moves from the UAV's cell to a
-landing cell, scaled as the budget, last among the scalars. :func:`scalar_inputs` and
-:func:`observation_to_tensors` are the one implementation every caller shares (policy, training
-collection, replay minibatches).
+(``home_input``, :mod:`~cpp_mujoco.agent.home_input`: the fewest moves from the UAV's cell to a
+landing cell, scaled as the budget, last among the scalars) and the obstacle layer
+(``obstacle_input``, :mod:`~cpp_mujoco.agent.obstacle_input`: a sixth grid channel).
+:func:`scalar_inputs` and :func:`observation_to_tensors` are the one implementation every caller
+shares (policy, training collection, replay minibatches).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from cpp_mujoco.grid.actions import NUM_ACTIONS
 
 IN_CHANNELS = 5  # landing, target, nfz, coverage, position
 LANDING_CHANNEL, TARGET_CHANNEL, NFZ_CHANNEL, COVERAGE_CHANNEL, POSITION_CHANNEL = range(5)
+OBSTACLE_CHANNEL = IN_CHANNELS  # the sixth channel of a network with the obstacle input
 # the wind inputs are m/s × this. Like the raw budget (25..75, see TrainConfig.budget_scale) they
 # must not be small beside 4,096 conv features: measured on map A, wind / 10 m/s left the policy
 # flying its calm tour in a steady 9 m/s wind (42 % landing at budget 45 after 6,000 updates)
@@ -51,6 +53,7 @@ class QNetwork(nn.Module):
     the scaled budget, or (B,4) budget and wind with ``wind_inputs`` (:func:`scalar_inputs`)."""
 
     home_input = False  # the paper's network reads no moves home (a general network may)
+    obstacle_input = False  # nor obstacles: GreedyAgent refuses maps with them
 
     def __init__(
         self,
@@ -146,17 +149,25 @@ def observation_to_tensors(
     device: torch.device | str = "cpu",
     wind_inputs: bool = False,
     home_input: bool = False,
+    obstacle_input: bool = False,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """A batched observation dict (leading dim N; ``map`` (3,H,W) shared or (N,3,H,W) per row)
     → (grid (N,5,H,W), scalars) float tensors (:func:`scalar_inputs`); an observation without
     ``wind`` counts as calm air. ``home_input``: the moves home from the map
-    (:func:`~cpp_mujoco.agent.home_input.moves_home`, cached per map)."""
+    (:func:`~cpp_mujoco.agent.home_input.moves_home`, cached per map). ``obstacle_input``: the
+    grid is (N,6,H,W), its last channel the ``obstacle`` layer ((H,W) shared or (N,H,W); zeros
+    where the observation has none: a map without obstacles)."""
     coverage = np.asarray(obs["coverage"])
     n = coverage.shape[0]
     maps = np.broadcast_to(np.asarray(obs["map"]), (n, 3, *coverage.shape[1:]))
-    grid = np.concatenate(
-        [maps, coverage[:, None], np.asarray(obs["position"])[:, None]], axis=1, dtype=np.float32
-    )
+    parts = [maps, coverage[:, None], np.asarray(obs["position"])[:, None]]
+    if obstacle_input:
+        obstacle = obs.get("obstacle")
+        if obstacle is None:
+            parts.append(np.zeros((n, 1, *coverage.shape[1:]), dtype=np.float32))
+        else:
+            parts.append(np.broadcast_to(np.asarray(obstacle), coverage.shape)[:, None])
+    grid = np.concatenate(parts, axis=1, dtype=np.float32)
     wind = obs.get("wind", np.zeros((n, 2), dtype=np.float32)) if wind_inputs else None
     home = moves_home(obs["map"], obs["position"]) if home_input else None
     budget = np.reshape(obs["budget"], (n, 1))

@@ -121,8 +121,9 @@ class GreedyAgent:
             part = {k: _rows(k, v, lo, lo + step) for k, v in obs.items()}
             net = self.network
             grid, scalars = observation_to_tensors(
-                part, self.budget_scale, self.device, net.wind_inputs, net.home_input
-            )
+                part, self.budget_scale, self.device, net.wind_inputs, net.home_input,
+                self.reads_obstacles,
+            )  # fmt: skip
             parts.append(self.network(grid, scalars).cpu().numpy())
         return np.concatenate(parts)
 
@@ -211,9 +212,9 @@ class GreedyAgent:
 
 
 def _rows(key: str, value, lo: int, hi: int | None, rows: np.ndarray | None = None) -> np.ndarray:
-    """Rows lo:hi (or ``rows``) of a batched array; a map shared by the batch ((3, H, W)) stays
-    whole."""
+    """Rows lo:hi (or ``rows``) of a batched array; a map shared by the batch ((3, H, W), its
+    obstacle layer (H, W)) stays whole."""
     value = np.asarray(value)
-    if key == "map" and value.ndim == 3:
+    if (key == "map" and value.ndim == 3) or (key == "obstacle" and value.ndim == 2):
         return value
     return value[rows] if rows is not None else value[lo:hi]

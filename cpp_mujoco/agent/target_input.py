@@ -14,7 +14,10 @@ coverage, UAV cell), so every path that feeds the network — acting, the replay
 demonstrations — gets it without storing anything: a multi-source breadth-first search run as
 batched array shifts (one step of every search per iteration, all rows at once) from the cells
 whose 3×3 view holds an unseen target, through the cells a move may enter (not no-fly, not off
-the map; padding is no-fly, so a padded map gives the same numbers).
+the map; padding is no-fly, so a padded map gives the same numbers). A grid with the obstacle
+channel (:mod:`~cpp_mujoco.agent.obstacle_input`) starts from the cells whose view, less what its
+obstacles hide, holds an unseen target: the grid's own view rule, through each map's cached view
+table (:func:`~cpp_mujoco.agent.obstacle_input.targets_in_view`).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from cpp_mujoco.agent.network import (
     POSITION_CHANNEL,
     TARGET_CHANNEL,
 )
+from cpp_mujoco.agent.obstacle_input import targets_in_view
 from cpp_mujoco.grid.actions import MOVES
 from cpp_mujoco.grid.mdp import GridConfig
 
@@ -36,15 +40,15 @@ NUM_FEATURES = len(MOVES)  # the four moves, then the UAV's own cell
 
 
 def moves_to_unseen(grid: torch.Tensor, cap: int) -> torch.Tensor:
-    """(B,5,H,W) observation grids → (B,5) float in [0, 1]: for each move (north, east, south,
-    west), 1 + the fewest moves from the cell it leads to (the UAV's own if the move is
-    rejected) to a cell whose view holds an unseen target; last, the fewest from the UAV's cell.
-    Divided by ``cap`` and clipped at 1 (1 also means no unseen target is reachable)."""
+    """(B,5,H,W) observation grids (or (B,6,H,W), with obstacles) → (B,5) float in [0, 1]: for
+    each move (north, east, south, west), 1 + the fewest moves from the cell it leads to (the
+    UAV's own if the move is rejected) to a cell whose view holds an unseen target; last, the
+    fewest from the UAV's cell. Divided by ``cap`` and clipped at 1 (1 also means no unseen
+    target is reachable)."""
     b, _, h, w = grid.shape
     free = grid[:, NFZ_CHANNEL] < 0.5
     unseen = (grid[:, TARGET_CHANNEL] > 0.5) & (grid[:, COVERAGE_CHANNEL] < 0.5)
-    half = FOV_SIDE // 2
-    sees = F.max_pool2d(unseen[:, None].float(), FOV_SIDE, stride=1, padding=half)[:, 0] > 0
+    sees = targets_in_view(grid, unseen, FOV_SIDE)
     flat = grid[:, POSITION_CHANNEL].reshape(b, -1).argmax(dim=1)
     row, col = flat // w, flat % w
     rows = torch.arange(b, device=grid.device)[:, None]

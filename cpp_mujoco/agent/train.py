@@ -108,8 +108,9 @@ class Trainer:
     def collect(self) -> None:
         c, net = self.config, self.online
         grid, scalars = observation_to_tensors(
-            self.obs, c.input_budget_scale, self.device, net.wind_inputs, net.home_input
-        )
+            self.obs, c.input_budget_scale, self.device, net.wind_inputs, net.home_input,
+            net.obstacle_input,
+        )  # fmt: skip
         with torch.no_grad():
             q = self.online(grid, scalars).cpu()
         if c.return_mask:  # the soft-max samples among the actions that keep the way home paid

@@ -35,6 +35,9 @@ _GENERAL_HELP = {
     "episodes_per_map": "episodes an environment flies on a map before it draws another",
     "door_walls": "chance a generated training map has a wall across it with one door (as on "
     "map C; the generator's door_wall)",
+    "map_family": "the generator's family of the training and validation maps: paper (the "
+    "paper-style maps) or city (streets, buildings and low obstacles that hide what lies behind "
+    "them; needs obstacle_input=true)",
     "named_maps": "maps trained beside the generated ones: bundled names or PNG paths (the "
     "paper's A B C, your site); each flies its size class's budgets, with demonstrations",
     "named_share": "fraction of the training episodes flown on the --named-maps",
@@ -71,6 +74,9 @@ _GENERAL_HELP = {
     "target_input": "the network also reads, for each action, the moves from the cell it leads "
     "to until the 3x3 view holds an unseen target (global-local only; from an --init-from "
     "network without it, the new inputs start at zero weight)",
+    "obstacle_input": "the network also reads the map's obstacle layer as one more grid channel "
+    "(either architecture; without it an agent refuses maps with obstacles; from an --init-from "
+    "network without it, the channel starts at zero weight)",
     "named_symmetries": "also train on every --named-maps map's rotations and mirror images "
     "(8 for a square map), not only its own orientation",
     "finish_mask": "as a policy (validation, the agent file), do not land while a cell showing "

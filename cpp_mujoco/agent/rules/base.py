@@ -43,3 +43,50 @@ class Stateless:
 
     def reset(self, num_episodes: int) -> None:
         pass
+
+
+def _shared(value: np.ndarray, unbatched: int) -> bool:
+    """Whether a map-like entry is one for the whole batch: unbatched, or a broadcast view."""
+    return value.ndim == unbatched or value.shape[0] <= 1 or value.strides[0] == 0
+
+
+def map_groups(obs: Observation) -> list[tuple[Observation, np.ndarray]]:
+    """The batch's distinct maps, each as an observation part (``map`` (3,H,W), and its
+    ``obstacle`` (H,W) where the observation has the layer) with the rows flown on it: the
+    rules that read a map's graph (:func:`~cpp_mujoco.grid.graph.graph_from_observation`)
+    build it once per map, obstacles included."""
+    layers = np.asarray(obs["map"])
+    n = int(np.shape(obs["coverage"])[0])
+    if not n:
+        return []
+    every = np.arange(n)
+    if "obstacle" in obs:
+        obstacle = np.asarray(obs["obstacle"])
+        if _shared(layers, 3) and _shared(obstacle, 2):
+            one = layers if layers.ndim == 3 else layers[0]
+            return [({"map": one, "obstacle": obstacle if obstacle.ndim == 2 else obstacle[0]},
+                     every)]  # fmt: skip
+        cells = obstacle.shape[-2:]
+        layers = np.concatenate(
+            [
+                np.broadcast_to(layers, (n, 3, *cells)),
+                np.broadcast_to(obstacle, (n, *cells))[:, None],
+            ],
+            axis=1,
+        )
+    elif layers.ndim == 3:
+        return [({"map": layers}, every)]
+    flat = layers.reshape(n, -1)
+    if flat.size and (flat == flat[:1]).all():
+        # one map in every row (a protocol's batch): np.unique's row sort would cost more than
+        # the whole decision
+        groups = [(layers[0], every)]
+    else:
+        _, first, which = np.unique(flat, axis=0, return_index=True, return_inverse=True)
+        groups = [(layers[f], np.flatnonzero(which.reshape(-1) == k)) for k, f in enumerate(first)]
+    return [(_part(one), rows) for one, rows in groups]
+
+
+def _part(layers: np.ndarray) -> Observation:
+    """(3,H,W) map layers, or (4,H,W) with the obstacle layer last → an observation part."""
+    return {"map": layers[:3], **({"obstacle": layers[3]} if layers.shape[0] > 3 else {})}

@@ -7,13 +7,14 @@ landing now; the benchmark scores coverage. Measured on 32 validation-range 16×
 budget), the general agent fell furthest behind the safe greedy planner at the largest budgets
 (−3.5 points at 75, +1.5 at 30) and often landed with budget and reachable targets left. The
 rule is the safe greedy planner's own test for having a goal
-(:meth:`~cpp_mujoco.grid.graph.MapGraph.returnable_goals`), so the agent lands where the planner
-would land. It only ever removes the landing: an episode flown with it covers at least what the
-same episode without it covers (coverage never falls, and where the two part the unmasked one
-lands), and the return mask it is combined with still lands every calm-air episode. The distances
-are calm-air moves; in an observed wind the return rule, which prices the way home at that
-wind, still decides which actions are safe, and a row whose only allowed action is the landing
-keeps it.
+(:meth:`~cpp_mujoco.grid.graph.MapGraph.returnable_goals`, on the map's graph with its
+obstacles where the observation has an ``obstacle`` layer: a target hidden from a cell is not
+shown by it), so the agent lands where the planner would land. It only ever removes the
+landing: an episode flown with it covers at least what the same episode without it covers
+(coverage never falls, and where the two part the unmasked one lands), and the return mask it
+is combined with still lands every calm-air episode. The distances are calm-air moves; in an
+observed wind the return rule, which prices the way home at that wind, still decides which
+actions are safe, and a row whose only allowed action is the landing keeps it.
 
 Like the revisit mask it is a rule of the policy, not of training (the soft-max explores, the
 DDQN target reads the Q-values); results name it (:data:`FINISH_RULE`, ``conditions.policy``).
@@ -25,7 +26,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from cpp_mujoco.agent.rules.base import Observation, QValues, Stateless
+from cpp_mujoco.agent.rules.base import Observation, QValues, Stateless, map_groups
 from cpp_mujoco.grid.actions import LAND
 from cpp_mujoco.grid.graph import graph_from_observation
 from cpp_mujoco.grid.mdp import GridConfig
@@ -42,23 +43,13 @@ _CHUNK_ELEMENTS = 1 << 21  # episodes × cells decided at once: bounds the (N, H
 
 def targets_in_reach(obs: dict[str, np.ndarray], fov_side: int = GridConfig.fov_side) -> np.ndarray:
     """(N,) bool for a batch of observations: some unseen target can still be seen and the way
-    home paid after it. A batch whose rows carry their own maps ((N, 3, H, W)) is decided map by
-    map."""
-    layers = np.asarray(obs["map"])
+    home paid after it — seen through the map's view, less what its obstacles hide where the
+    observation has an ``obstacle`` layer. A batch whose rows carry their own maps
+    ((N, 3, H, W)) is decided map by map (:func:`~cpp_mujoco.agent.rules.base.map_groups`)."""
     pos, budget, coverage = decode_observation(obs)
     out = np.zeros(pos.size, dtype=bool)
-    flat = layers.reshape(layers.shape[0], -1) if layers.ndim == 4 else None
-    if flat is not None and flat.size and (flat == flat[:1]).all():
-        # one map in every row (a protocol's batch): np.unique's row sort would cost more than
-        # the whole decision
-        groups = [(layers[0], np.arange(pos.size))]
-    elif flat is not None:
-        _, first, which = np.unique(flat, axis=0, return_index=True, return_inverse=True)
-        groups = [(layers[f], np.flatnonzero(which.reshape(-1) == k)) for k, f in enumerate(first)]
-    else:
-        groups = [(layers, np.arange(pos.size))]
-    for grid, rows in groups:
-        g = graph_from_observation({"map": grid}, fov_side)
+    for part, rows in map_groups(obs):
+        g = graph_from_observation(part, fov_side)
         chunk = max(1, _CHUNK_ELEMENTS // g.num_cells)
         for lo in range(0, rows.size, chunk):
             r = rows[lo : lo + chunk]

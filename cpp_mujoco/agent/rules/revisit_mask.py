@@ -9,7 +9,9 @@ reached with more budget left, and a move costs budget, so the cycle gained noth
 budget. The mask keeps what the policy's Q-values rank, minus those moves: the argmax then takes
 the best action that goes somewhere new. It is no pruning proven to keep the optimum (from a dead
 end the best way on may lead back), which is why the policy falls back to every allowed action
-when the mask leaves no move and no landing.
+when the mask leaves no move and no landing. A cell's view is the grid's: on a map with obstacles
+(an observation with an ``obstacle`` layer) the square less what they hide
+(:meth:`~cpp_mujoco.grid.graph.MapGraph.new_targets_seen`, map by map).
 
 It needs the episode's memory — the cells flown since the coverage last grew — so the agent
 holds one row per episode of its batch, started afresh by ``reset`` at every episode start
@@ -26,9 +28,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from cpp_mujoco.agent.network import NFZ_CHANNEL, TARGET_CHANNEL
-from cpp_mujoco.agent.rules.base import Observation, QValues
+from cpp_mujoco.agent.rules.base import Observation, QValues, map_groups
 from cpp_mujoco.grid.actions import LAND, MOVES
 from cpp_mujoco.grid.coverage import square_fov_counts
+from cpp_mujoco.grid.graph import graph_from_observation
 from cpp_mujoco.grid.mdp import GridConfig
 
 # what results record of the rule (policy_identity); a changed rule gets a new name here
@@ -73,8 +76,8 @@ class RevisitMemory:
         layers = np.asarray(obs["map"])
         if layers.ndim == 3:  # one map shared by the batch
             layers = np.broadcast_to(layers, (n, *layers.shape))
-        unseen = (layers[:, TARGET_CHANNEL] > 0) & (coverage <= 0)
-        shows_new = square_fov_counts(unseen.reshape(n, cells), (h, w), self.fov_side) > 0
+        unseen = ((layers[:, TARGET_CHANNEL] > 0) & (coverage <= 0)).reshape(n, cells)
+        shows_new = self._shows_new(obs, unseen, (h, w))
         nfz = layers[:, NFZ_CHANNEL].reshape(n, cells) > 0
         row, col = np.divmod(position, w)
         back = np.zeros_like(allowed, dtype=bool)
@@ -88,6 +91,19 @@ class RevisitMemory:
         empty = ~kept.any(axis=1)
         kept[empty] = allowed[empty]
         return kept
+
+    def _shows_new(
+        self, obs: Observation, unseen: np.ndarray, shape: tuple[int, int]
+    ) -> np.ndarray:
+        """(N, H·W) bool: the cells whose view holds an ``unseen`` target: the square, or where
+        the observation has obstacles its map's view less what they hide (map by map)."""
+        if not np.any(obs.get("obstacle", False)):
+            return square_fov_counts(unseen, shape, self.fov_side) > 0
+        shows = np.zeros_like(unseen)
+        for part, rows in map_groups(obs):
+            graph = graph_from_observation(part, self.fov_side)
+            shows[rows] = graph.new_targets_seen(unseen[rows]) > 0
+        return shows
 
 
 class RevisitMask:
