@@ -157,7 +157,9 @@ def test_result_carries_the_map_it_evaluated_and_its_conditions(tmp_path):
     assert conditions["budgets"] == {"min": 3, "max": 9, "step": 2}
     assert conditions["fov_side"] == 3 and conditions["env_kwargs"] == {}
     assert conditions["package_version"]
-    odd = evaluate(SafeGreedyPlanner(), mine, budgets=[3, 4, 9], env_kwargs={"fov_side": 1})
+    odd = evaluate(
+        SafeGreedyPlanner(fov_side=1), mine, budgets=[3, 4, 9], env_kwargs={"fov_side": 1}
+    )
     assert odd.conditions["budgets"] == {"min": 3, "max": 9, "step": None, "values": [3, 4, 9]}
     assert odd.conditions["fov_side"] == 1 and odd.upper_bound != result.upper_bound
 
