@@ -134,7 +134,7 @@ def test_every_option_has_help_and_states_its_default_at_most_once():
     for name, sub in commands.items():
         if name == "train":  # its options are generated from TrainConfig in cli/train.py
             continue
-        nested = [a for a in sub._actions if a.dest == "maps_command"]  # noqa: SLF001
+        nested = [a for a in sub._actions if a.dest in ("maps_command", "site_command")]  # noqa: SLF001
         parsers = [sub, *(p for a in nested for p in a.choices.values())]
         for action in (a for p in parsers for a in p._actions):  # noqa: SLF001
             if action.dest == "help":
@@ -142,7 +142,9 @@ def test_every_option_has_help_and_states_its_default_at_most_once():
             assert action.help, f"{name} {action.option_strings or action.dest} has no help"
             text = action.help.replace("%(default)s", "")
             assert text.count("default") <= 1, f"{name} {action.option_strings}"
-        assert any(a.dest == "no_progress" for a in sub._actions) == (name != "maps"), name  # noqa: SLF001
+        # maps and site run for seconds, no progress bar to switch off
+        quick = name in ("maps", "site")
+        assert any(a.dest == "no_progress" for a in sub._actions) == (not quick), name  # noqa: SLF001
 
 
 def test_version_through_python_m_cpp_mujoco():

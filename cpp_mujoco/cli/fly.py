@@ -8,6 +8,7 @@ import sys
 from cpp_mujoco.cli.options import (
     check_agent_file,
     check_output_file,
+    parse_start,
     progress_wanted,
     weather_options,
 )
@@ -33,20 +34,10 @@ def load_agent_for(spec: str, grid_map):
     return agent
 
 
-def _parse_start(text: str | None) -> tuple[int, int] | None:
-    if text is None:
-        return None
-    try:
-        row, col = (int(v) for v in text.split(","))
-    except ValueError:
-        raise ValueError(f"--start must be ROW,COL (e.g. 12,2), got {text!r}") from None
-    return row, col
-
-
 def cmd_fly(args) -> None:
     weather = weather_options(args)  # checked before anything is loaded or written
     grid_map = load_map(args.map, args.cell_pixels)
-    start = _parse_start(args.start)
+    start = parse_start(args.start)
     for option, suffix in (("rrd", ".rrd"), ("video", ".mp4"), ("onboard_video", ".mp4")):
         check_output_file("--" + option.replace("_", "-"), getattr(args, option), suffix)
     if args.planner:

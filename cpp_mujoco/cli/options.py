@@ -93,6 +93,17 @@ def add_budget_step_option(p, default: int = 1, help: str | None = None) -> None
     )  # fmt: skip
 
 
+def parse_start(text: str | None, example: str = "12,2") -> tuple[int, int] | None:
+    """``--start ROW,COL`` as a cell (None when not given)."""
+    if text is None:
+        return None
+    try:
+        row, col = (int(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--start must be ROW,COL (e.g. {example}), got {text!r}") from None
+    return row, col
+
+
 def add_fov_side_option(p) -> None:
     """``--fov-side``: the camera's square, for the episodes and the planners alike."""
     p.add_argument(

@@ -264,7 +264,10 @@ def add_site(sub) -> None:
         "mission: QGroundControl plan, MAVLink waypoints, flown in MuJoCo (the site extra)",
     )
     p.set_defaults(func="cpp_mujoco.cli.site:cmd_site_plan")  # a sub-command is required
-    kinds = p.add_subparsers(dest="site_command", metavar="{grid,plan}", required=True)
+    kinds = p.add_subparsers(
+        dest="site_command", metavar="{grid,plan}", required=True,
+        help="grid: the site as a map and its georeference; plan: and a checked mission",
+    )  # fmt: skip
     grid = kinds.add_parser("grid", help="rasterise the site: the map PNG and its georeference")
     plan = kinds.add_parser(
         "plan", help="plan, export, read back, fly in MuJoCo and check a mission on the site"

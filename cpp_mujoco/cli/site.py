@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from cpp_mujoco import sites
-from cpp_mujoco.cli.options import check_agent_file
+from cpp_mujoco.cli.options import check_agent_file, parse_start
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.planners.optimal_solver import SolverOptions
 from cpp_mujoco.util.io import atomic_write_bytes
@@ -39,16 +39,6 @@ def _raster(args):
 
     return _given(RasterConfig, args, cell_size="cell_size", heading="heading",
                   nfz_margin="nfz_margin")  # fmt: skip
-
-
-def _parse_start(text: str | None) -> tuple[int, int] | None:
-    if text is None:
-        return None
-    try:
-        row, col = (int(v) for v in text.split(","))
-    except ValueError:
-        raise ValueError(f"--start must be ROW,COL (e.g. 18,6), got {text!r}") from None
-    return row, col
 
 
 def _policy(args):
@@ -101,7 +91,7 @@ def cmd_site_plan(args) -> None:
     battery = _given(Battery, args, usable_wh="battery_wh", reserve="reserve",
                      climb_speed="climb_speed")  # fmt: skip
     limits = _given(Limits, args, min_altitude="min_altitude", max_altitude="max_altitude")
-    start = _parse_start(args.start)
+    start = parse_start(args.start, "18,6")
     policy = _policy(args)
     if flight.wind_speed > 0 and not (args.planner or "").endswith("-wind") and not args.agent:
         print(

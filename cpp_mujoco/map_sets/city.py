@@ -13,12 +13,13 @@ some target seen within the size class's budget) and draws again if they fail.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, fields
 from typing import ClassVar
 
 import numpy as np
 
 from cpp_mujoco.maps.lineage import TargetShapes, random_targets
+from cpp_mujoco.util.settings import with_options
 
 _RANGES = (
     "street_width", "block_side", "low_obstacles", "low_obstacle_length", "nfz_zones",
@@ -72,11 +73,7 @@ class CityConfig:
     @classmethod
     def from_options(cls, config: CityConfig | None = None, **options) -> CityConfig:
         """``config`` with ``options`` replaced; an unknown option is an error naming the known."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(options) - known)
-        if unknown:
-            raise ValueError(f"unknown city option(s) {unknown}; known: {sorted(known)}")
-        return replace(config or cls(), **options)
+        return with_options(cls, config, "city", **options)
 
 
 def _draw_int(rng: np.random.Generator, pair: tuple[int, int]) -> int:

@@ -30,6 +30,7 @@ from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.map_sets.city import CityConfig, draw_city
 from cpp_mujoco.map_sets.size_classes import budget_range, map_size
 from cpp_mujoco.maps import MAX_SIDE, GridMap, MapError
+from cpp_mujoco.util.settings import with_options
 
 GENERATOR_VERSION = 1  # bump when a change alters generated maps (held-out sets record it)
 MIN_SIZE = 8  # smaller maps leave no room for a landing zone, blocks and targets apart
@@ -82,11 +83,7 @@ class GeneratorConfig:
     @classmethod
     def from_options(cls, config: GeneratorConfig | None = None, **options) -> GeneratorConfig:
         """``config`` with ``options`` replaced; an unknown option is an error naming the known."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(options) - known)
-        if unknown:
-            raise ValueError(f"unknown generator option(s) {unknown}; known: {sorted(known)}")
-        return replace(config or cls(), **options)
+        return with_options(cls, config, "generator", **options)
 
 
 FAMILIES: dict[str, type] = {"paper": GeneratorConfig, "city": CityConfig}  # name → config

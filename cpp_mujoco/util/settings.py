@@ -25,6 +25,16 @@ class SettingsError(ValueError):
     """A settings file or override the dataclass cannot take."""
 
 
+def with_options(cls: type, config: Any, what: str, **options: Any) -> Any:
+    """``config`` (default: ``cls()``) with ``options`` replaced; an option that is not a field
+    of ``cls`` is a ``ValueError`` naming the known ones (``what``: whose options they are)."""
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise ValueError(f"unknown {what} option(s) {unknown}; known: {sorted(known)}")
+    return dataclasses.replace(config or cls(), **options)
+
+
 @functools.cache
 def _kinds(cls: type) -> dict[str, tuple[type, type | None]]:
     """Each field's (kind, element kind): ``int``, ``float``, ``bool``, ``str`` or ``tuple``
