@@ -289,6 +289,11 @@ def in_page_tables() -> dict[Path, str]:
         table = doc_tables.script_table(load("rated_wind.json"), "rated_wind",
                                         "results/rated_wind.json")  # fmt: skip
         wind_page.append(("rated-wind", table))
+    if (RESULTS / "rated_wind_each.json").is_file():
+        table = doc_tables.script_table(
+            load("rated_wind_each.json"), "rated_wind", "results/rated_wind_each.json"
+        )
+        wind_page.append(("rated-each", table))
     if (RESULTS / "wind_sweep.json").is_file():
         table = doc_tables.script_table(load("wind_sweep.json"), "sweep", "results/wind_sweep.json")
         wind_page.append(("wind-sweep", table))
