@@ -32,7 +32,7 @@ _BENCH_ROWS = (
     ),
     ("physics real-time factor, one env", ("physics", "real_time_factor"), "{:,.0f}×", "≥ 300×"),
     (
-        "batched physics env vs single env, grid actions/s in one process",
+        "batched physics env ({num_envs} drones) vs single env, grid actions/s in one process",
         ("physics", "batched_vs_single"),
         "{:.2f}×",
         "≥ 2×",
@@ -85,12 +85,14 @@ def benchmark_table(data: dict, source: str) -> str:
     lines = ["| measure | value | target |", "|---|---|---|"]
     for label, (section, key), fmt, target in _BENCH_ROWS:
         if key in data.get(section, {}):
+            label = label.format(num_envs=data.get("physics", {}).get("num_envs", "N"))
             lines.append(f"| {label} | {fmt.format(data[section][key])} | {target} |")
     m = data["machine"]
     lines += [
         "",
         f"{m['cpus']} CPUs, load average {m['load_average_1m_before']:.1f} before and "
-        f"{m['load_average_1m_after']:.1f} after (other jobs running make these lower bounds); "
-        f"Python {m['python']}. From `{source}`, measured by `{data['command']}`.",
+        f"{m['load_average_1m_after']:.1f} after (its own processes included; other jobs make "
+        f"the rates lower bounds); Python {m['python']}. From `{source}`, measured by "
+        f"`{data['command']}`.",
     ]
     return "\n".join(lines)
