@@ -294,6 +294,7 @@ def in_page_tables() -> dict[Path, str]:
             load("rated_wind_each.json"), "rated_wind", "results/rated_wind_each.json"
         )
         wind_page.append(("rated-each", table))
+        tables.setdefault(docs / "physics.md", []).append(("rated-each", table))
     if (RESULTS / "wind_sweep.json").is_file():
         table = doc_tables.script_table(load("wind_sweep.json"), "sweep", "results/wind_sweep.json")
         wind_page.append(("wind-sweep", table))
