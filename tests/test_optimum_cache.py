@@ -55,7 +55,8 @@ def test_missions_climb_and_bounds_fall_across_budgets_and_landing_cells():
 def test_a_cache_that_contradicts_itself_is_refused():
     tour = [E, E, E, S, W, W, W, N, LAND]
     entries = {"0,1,9": entry(3, 3, "optimal", tour), "0,0,11": entry(1, 2, "feasible", [S])}
-    with pytest.raises(CacheError, match=r"contradicts itself at episode 0,1,9: .*bound is 2 .*0,0,11"):
+    contradiction = r"contradicts itself at episode 0,1,9: .*bound is 2 .*0,0,11"
+    with pytest.raises(CacheError, match=contradiction):
         tighten(entries, G)
     entries = {"0,1,9": entry(3, 3, "optimal", tour), "0,0,10": entry(0, 0, "infeasible", [])}
     with pytest.raises(CacheError, match=r"0,0,10: it has no way home"):
