@@ -313,6 +313,9 @@ def in_page_tables() -> dict[Path, str]:
     if (RESULTS / "benchmark.json").is_file():
         table = benchmark_table(load("benchmark.json"), "results/benchmark.json")
         tables[docs / "scaling.md"] = [("benchmark", table)]
+    if (RESULTS / "calibration.json").is_file():
+        table = doc_tables.calibration_table(load("calibration.json"), "results/calibration.json")
+        tables[docs / "battery.md"] = [("calibration", table)]
     occlusion = sorted(RESULTS.glob("occlusion_city32-v1_fov*.json"))
     if occlusion:
         table = doc_tables.occlusion_table(

@@ -8,6 +8,7 @@
     python scripts/results_flights.py map-set --map-set city32-v1 --no-agent
     python scripts/results_flights.py energy                      # results/action_energy.json
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
+    python scripts/results_flights.py calibration                 # results/calibration.json
 
 then ``python scripts/results_docs.py`` rewrites the pages from them. Each file records the
 command that flew it; every result in it names its map (and digest), policy, backend and
@@ -113,6 +114,29 @@ def energy(repeats: int) -> None:
     })  # fmt: skip
 
 
+def calibration_units() -> None:
+    """One calm move's battery energy (the budget unit before its margin) for each power model,
+    the rotors alone and drawn from the pack: results/calibration.json."""
+    from dataclasses import asdict, replace
+
+    from cpp_mujoco.maps import load_map
+    from cpp_mujoco.physics.calibration import calibration
+    from cpp_mujoco.physics.config import POWER_MODELS, PhysicsConfig
+
+    open_map = load_map("A")  # the rows name a map; the calibration flies its own 3x3 patch
+    rows = []
+    for model in POWER_MODELS:
+        for resistance in (0.0, PhysicsConfig().battery_cell_resistance):
+            config = replace(PhysicsConfig(), power_model=model, battery_cell_resistance=resistance)
+            rows.append({
+                **open_map.identity(), "policy": "the calibration moves (physics/calibration.py)",
+                "backend": "mujoco", "power_model": model, "cell_resistance_ohm": resistance,
+                **{k: v for k, v in calibration(config).items() if k != "key"},
+                "conditions": {"physics_config": asdict(config)},
+            })  # fmt: skip
+    write("calibration.json", {"command": f"{COMMAND} calibration", "results": rows})
+
+
 def wind_agents() -> None:
     """The paper agents and the wind-robust agents on the grid, calm and in the grid's 9 m/s wind
     (every episode 9 m/s from N/E/S/W, moderate gust costs), beside the safe greedy wind planner
@@ -143,7 +167,10 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    p.add_argument("family", choices=["planners", "transfer", "map-set", "energy", "wind-agents"])
+    p.add_argument(
+        "family",
+        choices=["planners", "transfer", "map-set", "energy", "wind-agents", "calibration"],
+    )
     p.add_argument("--map-set", default="heldout16-v1", help="map-set: which set")
     p.add_argument("--no-agent", action="store_true", help="map-set: the planners only")
     p.add_argument("--workers", type=int, default=2, help="transfer: MuJoCo worker processes")
@@ -159,6 +186,8 @@ def main(argv=None) -> int:
         map_set(args.map_set, not args.no_agent)
     elif args.family == "wind-agents":
         wind_agents()
+    elif args.family == "calibration":
+        calibration_units()
     else:
         energy(args.repeats)
     print("now: python scripts/results_docs.py (the pages from the files)")

@@ -322,3 +322,30 @@ def occlusion_table(files: list[dict], sources: list[str]) -> str:
         + ".",
     ]
     return "\n".join(lines)
+
+
+def calibration_table(data: dict, source: str) -> str:
+    """One calm move's energy (J) for each power model, the rotors alone and drawn from the pack
+    (its internal loss on top, in %), and the hover power of the calibration."""
+    by = {(r["power_model"], r["cell_resistance_ohm"] > 0): r for r in data["results"]}
+    models = ("momentum", "forward-flight")
+    ohm = next(r["cell_resistance_ohm"] for r in data["results"] if r["cell_resistance_ohm"] > 0)
+    lines = [
+        "| | momentum (hover) power model | forward-flight power model |",
+        "|---|---|---|",
+        "| rotors only (`battery_cell_resistance=0`) | "
+        + " | ".join(f"{by[(m, False)]['unit_energy_j']:.2f}" for m in models)
+        + " |",
+        f"| drawn from the pack (default {ohm * 1000:g} mΩ per cell) | "
+        + " | ".join(
+            f"{by[(m, True)]['unit_energy_j']:.2f} "
+            f"({by[(m, True)]['unit_energy_j'] / by[(m, False)]['unit_energy_j'] - 1:+.2%})"
+            for m in models
+        )
+        + " |",
+        "",
+        f"The hover of the calibration draws {by[('momentum', False)]['hover_power_w']:.2f} W of "
+        f"rotor load ({by[('momentum', True)]['hover_power_w']:.2f} W from the pack). From "
+        f"`{source}`, flown by `{data['command']}`.",
+    ]
+    return "\n".join(lines)
