@@ -45,8 +45,7 @@ from cpp_mujoco.agent.network import (
     POSITION_CHANNEL,
     TARGET_CHANNEL,
 )
-from cpp_mujoco.grid.coverage import square_fov_cells
-from cpp_mujoco.grid.occlusion import visible_squares
+from cpp_mujoco.grid.coverage import view_valid as coverage_view_valid
 
 # view tables kept, as bits keyed by the packed obstacle layer: ≈ 1.5 kB a 32×32 map, so the
 # bundled run's pool (8,192 maps of each of two sizes) fits in ≈ 25 MB — a minibatch draws its
@@ -83,11 +82,9 @@ def _extent(used: torch.Tensor) -> list[tuple[int, int]]:
 
 def view_valid(obstacle: np.ndarray, side: int) -> np.ndarray:
     """(h, w, side²) bool: the slots of each cell's side×side square that its camera sees on an
-    h×w map with these obstacles — :func:`~cpp_mujoco.grid.coverage.view_cells`' ``valid``."""
+    h×w map with these obstacles — :func:`~cpp_mujoco.grid.coverage.view_valid` per cell."""
     obstacle = np.asarray(obstacle, dtype=bool)
-    _, valid = square_fov_cells(obstacle.shape, side)
-    valid &= visible_squares(obstacle, side)
-    return valid.reshape(*obstacle.shape, side * side)
+    return coverage_view_valid(obstacle, side).reshape(*obstacle.shape, side * side)
 
 
 @lru_cache(maxsize=CACHE_MAPS)

@@ -8,6 +8,8 @@ backend marks the camera footprint as a mask (:func:`mark_seen`). Nothing here i
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from cpp_mujoco.grid.occlusion import visible_squares
@@ -43,15 +45,35 @@ def square_fov_cells(shape: tuple[int, int], side: int) -> tuple[np.ndarray, np.
     return cells, valid
 
 
+def view_valid(obstacle: np.ndarray, side: int) -> np.ndarray:
+    """(H·W, side²) bool: the slots of each cell's square on the grid and in sight past
+    ``obstacle`` (:mod:`cpp_mujoco.grid.occlusion`); the square's own where there is none. The
+    sight table is kept per obstacle layer: the MDP, the graph and the agent's inputs of one map
+    share it."""
+    obstacle = np.asarray(obstacle, dtype=bool)
+    _, valid = square_fov_cells(obstacle.shape, side)
+    if obstacle.any():
+        valid &= _sight(np.packbits(obstacle).tobytes(), obstacle.shape, side)
+    return valid
+
+
+@functools.lru_cache(maxsize=32)
+def _sight(packed: bytes, shape: tuple[int, int], side: int) -> np.ndarray:
+    obstacle = np.unpackbits(np.frombuffer(packed, dtype=np.uint8), count=shape[0] * shape[1])
+    sight = visible_squares(obstacle.reshape(shape).astype(bool), side)
+    sight.flags.writeable = False
+    return sight
+
+
 def view_cells(grid_map: GridMap, side: int) -> tuple[np.ndarray, np.ndarray]:
     """The map's field-of-view table: :func:`square_fov_cells`, with the entries that obstacles
-    hide (:mod:`cpp_mujoco.grid.occlusion`) ``valid`` False and pointing at the cell itself, as
-    off-grid entries do, so marking the table never marks a hidden cell. On a map without
-    obstacles it is the square table itself (the rule hides nothing there: every square slot on
-    the grid is on some ray to the border)."""
-    cells, valid = square_fov_cells(grid_map.shape, side)
+    hide (:func:`view_valid`) ``valid`` False and pointing at the cell itself, as off-grid
+    entries do, so marking the table never marks a hidden cell. On a map without obstacles it is
+    the square table itself (the rule hides nothing there: every square slot on the grid is on
+    some ray to the border)."""
+    cells, _ = square_fov_cells(grid_map.shape, side)
+    valid = view_valid(grid_map.obstacle, side)
     if grid_map.has_obstacles:
-        valid &= visible_squares(grid_map.obstacle, side)
         cells = np.where(valid, cells, np.arange(cells.shape[0])[:, None])
     return cells, valid
 

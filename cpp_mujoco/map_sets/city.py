@@ -13,13 +13,13 @@ some target seen within the size class's budget) and draws again if they fail.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from cpp_mujoco.maps.lineage import TargetShapes, random_targets
-from cpp_mujoco.util.settings import with_options
+from cpp_mujoco.util.settings import check_ranges_and_chances, with_options
 
 _RANGES = (
     "street_width", "block_side", "low_obstacles", "low_obstacle_length", "nfz_zones",
@@ -50,16 +50,7 @@ class CityConfig:
     max_attempts: int = 100  # maps drawn (and checked) before giving up with an error
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, list):  # from JSON
-                object.__setattr__(self, f.name, value := tuple(value))
-            if f.name in _RANGES and not (
-                isinstance(value, tuple) and len(value) == 2 and 0 <= value[0] <= value[1]
-            ):
-                raise ValueError(f"{f.name} must be a range (low, high), got {value!r}")
-            if f.name in _CHANCES and not 0.0 <= value <= 1.0:
-                raise ValueError(f"{f.name} is a probability in 0..1, got {value!r}")
+        check_ranges_and_chances(self, _RANGES, _CHANCES)
         ones = ("street_width", "block_side", "landing_pads", "pad_side", "target_patches")
         if any(getattr(self, name)[0] < 1 for name in ones):
             raise ValueError(f"{', '.join(ones)} must be >= 1")

@@ -30,7 +30,7 @@ from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.map_sets.city import CityConfig, draw_city
 from cpp_mujoco.map_sets.size_classes import budget_range, map_size
 from cpp_mujoco.maps import MAX_SIDE, GridMap, MapError
-from cpp_mujoco.util.settings import with_options
+from cpp_mujoco.util.settings import check_ranges_and_chances, with_options
 
 GENERATOR_VERSION = 1  # bump when a change alters generated maps (held-out sets record it)
 MIN_SIZE = 8  # smaller maps leave no room for a landing zone, blocks and targets apart
@@ -64,15 +64,9 @@ class GeneratorConfig:
     max_attempts: int = 100  # maps drawn (and checked) before giving up with an error
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, list):  # from JSON
-                object.__setattr__(self, f.name, value := tuple(value))
-            if isinstance(value, tuple):
-                if len(value) != 2 or not 0 <= value[0] <= value[1]:
-                    raise ValueError(f"{f.name} must be a range (low, high), got {value!r}")
-            elif f.name != "max_attempts" and not 0.0 <= value <= 1.0:
-                raise ValueError(f"{f.name} is a probability in 0..1, got {value!r}")
+        ranges = tuple(f.name for f in fields(self) if str(f.type).startswith("tuple"))
+        chances = tuple(f.name for f in fields(self) if f.type == "float")
+        check_ranges_and_chances(self, ranges, chances)
         if self.landing_cells[0] < 1 or self.target_region_cells[0] < 1 or self.nfz_side[0] < 1:
             raise ValueError("landing_cells, nfz_side and target_region_cells must be >= 1")
         if not (0.0 < self.target_share[0] and self.target_share[1] < 1.0):

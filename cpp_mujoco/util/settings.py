@@ -35,6 +35,24 @@ def with_options(cls: type, config: Any, what: str, **options: Any) -> Any:
     return dataclasses.replace(config or cls(), **options)
 
 
+def check_ranges_and_chances(
+    config: Any, ranges: tuple[str, ...], chances: tuple[str, ...]
+) -> None:
+    """A generator config's fields as it reads them: lists (from JSON) become tuples, each of
+    ``ranges`` must be a (low, high) pair with 0 <= low <= high, each of ``chances`` lie in 0..1;
+    a ``ValueError`` names the first field that does not."""
+    for name in (*ranges, *chances):
+        value = getattr(config, name)
+        if isinstance(value, list):
+            object.__setattr__(config, name, value := tuple(value))
+        if name in ranges and not (
+            isinstance(value, tuple) and len(value) == 2 and 0 <= value[0] <= value[1]
+        ):
+            raise ValueError(f"{name} must be a range (low, high), got {value!r}")
+        if name in chances and not 0.0 <= value <= 1.0:
+            raise ValueError(f"{name} is a probability in 0..1, got {value!r}")
+
+
 @functools.cache
 def _kinds(cls: type) -> dict[str, tuple[type, type | None]]:
     """Each field's (kind, element kind): ``int``, ``float``, ``bool``, ``str`` or ``tuple``
