@@ -25,6 +25,12 @@ SETS = {
     # city maps (map_sets/city.py): buildings, low obstacles, landing pads on the streets
     "city32-v1": (1, 32, 1_200_000, 30, {"family": "city"}),
     "city50-v1": (1, 50, 1_200_000, 30, {"family": "city"}),
+    # scattered small blocks, a tiny landing pad, target blobs (generator.ScatterConfig)
+    "scatter16-v1": (1, 16, 1_300_000, 50, {"family": "scatter"}),
+    "scatter32-v1": (1, 32, 1_300_000, 30, {"family": "scatter"}),
+    # open fields with target patches (generator.FieldConfig)
+    "field16-v1": (1, 16, 1_400_000, 50, {"family": "field"}),
+    "field32-v1": (1, 32, 1_400_000, 30, {"family": "field"}),
 }
 
 NOTE = (

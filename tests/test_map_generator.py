@@ -231,7 +231,7 @@ def test_load_map_set_checks_digests(monkeypatch):
     assert len(load_map_set("heldout16-v1", first=2)) == 2
     with pytest.raises(
         MapSetError,
-        match="unknown map set 'nope'; known: city32-v1, city50-v1, doors16-v1, heldout16-v1",
+        match="unknown map set 'nope'; known: city32-v1, city50-v1, doors16-v1, field16-v1",
     ):
         load_map_set("nope")
     with pytest.raises(MapSetError, match="cannot take the first 101"):
@@ -281,8 +281,8 @@ def test_map_set_refuses_what_it_cannot_run(tmp_path, capsys, extra, message):
 def test_map_set_bad_names(tmp_path, capsys):
     assert main(["evaluate", "--map-set", "nope", "--out", str(tmp_path)]) == 2
     assert (
-        "known: city32-v1, city50-v1, doors16-v1, heldout16-v1, heldout32-v1"
-        in capsys.readouterr().err
+        "known: city32-v1, city50-v1, doors16-v1, field16-v1, field32-v1, heldout16-v1, "
+        "heldout32-v1, scatter16-v1, scatter32-v1" in capsys.readouterr().err
     )
     assert main(["evaluate", "--first", "2", "--out", str(tmp_path)]) == 2
     assert "--first needs --map-set" in capsys.readouterr().err

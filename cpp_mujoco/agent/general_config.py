@@ -39,8 +39,10 @@ class GeneralTrainConfig(TrainConfig):
     # door_wall; 0: the maps of runs from before the option). Validation maps keep the default
     door_walls: float = 0.0
     # the generator's family of the training and validation maps: "paper" (the paper-style maps
-    # of every run before the option) or "city" (streets and buildings with obstacles that hide
-    # what lies behind them: needs obstacle_input)
+    # of every run before the option), "city" (streets and buildings with obstacles that hide
+    # what lies behind them: needs obstacle_input), "scatter", "field"
+    # (:data:`~cpp_mujoco.map_sets.generator.FAMILIES`), or several joined by "+"
+    # ("paper+scatter+field+city"): the seeds take the families in turn
     map_family: str = "paper"
     # maps a user brings (bundled names or PNG paths: the paper's A B C, a site) trained beside
     # the generated ones, each with its size class's budgets and demonstrations on every one
@@ -144,13 +146,15 @@ class GeneralTrainConfig(TrainConfig):
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if not 0.0 <= self.door_walls <= 1.0:  # NaN fails too
             raise ValueError(f"door_walls is a chance in 0..1, got {self.door_walls}")
-        if self.map_family not in FAMILIES:
+        families = self.map_family.split("+")
+        if any(f not in FAMILIES for f in families) or len(set(families)) != len(families):
             raise ValueError(
-                f"map_family must be one of {', '.join(FAMILIES)}, got {self.map_family!r}"
+                f"map_family must be one of {', '.join(FAMILIES)} or several of them joined by "
+                f"'+' (each once), got {self.map_family!r}"
             )
         if self.map_family != "paper" and self.door_walls:
             raise ValueError("door_walls are walls of the paper-style maps (map_family=paper)")
-        if self.map_family == "city" and not self.obstacle_input:
+        if "city" in families and not self.obstacle_input:
             raise ValueError(
                 "city maps have obstacles that hide what the camera sees: train them with "
                 "obstacle_input=true (a network without it cannot fly them)"

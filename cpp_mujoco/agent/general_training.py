@@ -138,7 +138,7 @@ class MapPoolSource:
         named = f" + {', '.join(c.named_maps)}" if c.named_maps else ""
         named += " and their 8 images" if named and c.named_symmetries else ""
         generated = len(self.pool) - len(self.pool.named)
-        family = "city " if c.map_family == "city" else ""
+        family = "" if c.map_family == "paper" else f"{c.map_family} "
         wind = f", wind up to {c.wind_max_speed:g} m/s" if c.wind else ""
         return f"general ({generated} generated {family}maps{named}, sizes {sizes}{wind})"
 

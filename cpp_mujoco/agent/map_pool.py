@@ -64,13 +64,20 @@ class MapPool:
     def generate(cls, sizes: tuple[int, ...], per_size: int, first_seed: int, **options) -> MapPool:
         """``per_size`` maps of each size from seeds ``first_seed`` on (the same seeds for
         every size: a seed gives another map at another size), drawn with the generator
-        ``options`` (:class:`~cpp_mujoco.map_sets.generator.GeneratorConfig` fields)."""
+        ``options`` (:class:`~cpp_mujoco.map_sets.generator.GeneratorConfig` fields). A
+        ``family`` of several joined by ``+`` (``"paper+city"``) is a mix: seed ``first_seed + i``
+        is drawn by the ``i``-th family in turn, so every family has its share of every size."""
         if per_size < 1 or not sizes:
             raise ValueError(f"a map pool needs sizes and >= 1 map per size, got {per_size}")
         seeds = [first_seed + i for i in range(per_size)]
+        rest = {k: v for k, v in options.items() if k != "family"}
+        families = [{"family": f} for f in str(options.get("family", "paper")).split("+")]
         maps, used = [], []
         for size in sizes:
-            maps += [generate_from_seed(seed, size, **options) for seed in seeds]
+            maps += [
+                generate_from_seed(seed, size, **families[i % len(families)], **rest)
+                for i, seed in enumerate(seeds)
+            ]
             used += seeds
         return cls._of(maps, used, max(sizes), options)
 

@@ -51,10 +51,12 @@ def add_generate_options(p) -> None:
         help="the maps' side, cells (default: %(default)s)",
     )  # fmt: skip
     p.add_argument(
-        "--family", choices=("paper", "city"), default="paper",
-        help="paper: blocks of no-fly, target blobs, one landing zone (the held-out v1 sets); "
-        "city: buildings on a street grid, low obstacles, landing pads (city32-v1, city50-v1) "
-        "(default: %(default)s)",
+        "--family", choices=("paper", "city", "scatter", "field"), default="paper",
+        help="paper: blocks of no-fly, target blobs, one landing zone (heldout16-v1, "
+        "heldout32-v1); city: buildings on a street grid, low obstacles, landing pads "
+        "(city32-v1, city50-v1); scatter: many small blocks, a tiny landing pad, target blobs "
+        "(scatter16-v1, scatter32-v1); field: open ground with target patches (field16-v1, "
+        "field32-v1) (default: %(default)s)",
     )  # fmt: skip
     p.add_argument(
         "--door-wall", type=float, metavar="P",
@@ -76,9 +78,9 @@ def add_map_set_options(p) -> None:
         "--map-set", metavar="NAME",
         help="instead of --map: a held-out map set (heldout16-v1, heldout32-v1, doors16-v1: "
         "every map with a wall and one door; city32-v1, city50-v1: buildings that hide "
-        "targets), flown on --backend with its size class's budgets (16x16: 25..75, 32x32: "
-        "50..150, 50x50: 150..250); writes a JSON and its figures (per-map coverage, example "
-        "trajectories) into --out",
+        "targets; scatter16-v1, scatter32-v1, field16-v1, field32-v1), flown on --backend "
+        "with its size class's budgets (16x16: 25..75, 32x32: 50..150, 50x50: 150..250); "
+        "writes a JSON and its figures (per-map coverage, example trajectories) into --out",
     )  # fmt: skip
     p.add_argument(
         "--first", type=int_at_least(1), metavar="N",

@@ -36,8 +36,9 @@ _GENERAL_HELP = {
     "door_walls": "chance a generated training map has a wall across it with one door (as on "
     "map C; the generator's door_wall)",
     "map_family": "the generator's family of the training and validation maps: paper (the "
-    "paper-style maps) or city (streets, buildings and low obstacles that hide what lies behind "
-    "them; needs obstacle_input=true)",
+    "paper-style maps), city (streets, buildings and low obstacles that hide what lies behind "
+    "them; needs obstacle_input=true), scatter (small blocks, a tiny landing pad), field (open "
+    "ground, target patches), or several joined by + (paper+scatter+field+city), taken in turn",
     "named_maps": "maps trained beside the generated ones: bundled names or PNG paths (the "
     "paper's A B C, your site); each flies its size class's budgets, with demonstrations",
     "named_share": "fraction of the training episodes flown on the --named-maps",

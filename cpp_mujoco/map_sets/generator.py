@@ -80,8 +80,44 @@ class GeneratorConfig:
         return with_options(cls, config, "generator", **options)
 
 
-FAMILIES: dict[str, type] = {"paper": GeneratorConfig, "city": CityConfig}  # name → config
-_PREFIX = {"paper": "gen", "city": "city"}  # a generated map's name starts with it
+@dataclass(frozen=True)
+class ScatterConfig(GeneratorConfig):
+    """Scattered small blocks, a tiny landing pad and target blobs: many obstacles to fly round,
+    no room to land on the way and targets in small irregular pieces (the paper-style draw with
+    these defaults)."""
+
+    family: ClassVar[str] = "scatter"
+    landing_cells: tuple[int, int] = (1, 3)
+    landing_blob: float = 0.0
+    nfz_blocks: tuple[int, int] = (8, 16)
+    nfz_side: tuple[int, int] = (1, 2)
+    nfz_irregular: float = 0.2
+    nfz_wall: float = 0.0
+    target_region_cells: tuple[int, int] = (3, 12)
+    target_irregular: float = 0.9
+    yellow_block: float = 0.3
+
+
+@dataclass(frozen=True)
+class FieldConfig(GeneratorConfig):
+    """Open fields with target patches: hardly a no-fly cell, targets in separate patches with
+    open ground between them — the budget, not the obstacles, decides which patches are flown."""
+
+    family: ClassVar[str] = "field"
+    landing_cells: tuple[int, int] = (2, 8)
+    nfz_blocks: tuple[int, int] = (0, 1)
+    nfz_side: tuple[int, int] = (1, 3)
+    target_share: tuple[float, float] = (0.15, 0.45)
+    target_region_cells: tuple[int, int] = (8, 30)
+    target_irregular: float = 0.5
+    yellow_block: float = 0.0
+
+
+FAMILIES: dict[str, type] = {
+    "paper": GeneratorConfig, "city": CityConfig, "scatter": ScatterConfig, "field": FieldConfig,
+}  # fmt: skip
+# a generated map's name starts with it
+_PREFIX = {"paper": "gen", "city": "city", "scatter": "scatter", "field": "field"}
 
 
 def config_from_options(
