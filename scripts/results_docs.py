@@ -11,8 +11,10 @@ backend and the conditions it was flown under) and writes:
   on maps A, B and C (results/optimum_abc.json);
 - docs/results/optimum.md: the exact planner's table of A, B and C (the one docs/optimum.md
   holds, from the same code) and the sampled held-out sets (results/optimum_<set>.json);
-- docs/results/map_sets.md: the planners and the general agent over a held-out map set's whole
-  protocol (results/map_set_<set>.json, from ``cpp-mujoco evaluate --map-set``), when committed;
+- docs/results/map_sets.md: every held-out set against its limit (the truth table: the general
+  agent's network alone, results/network_alone_<set>.json; the bundled policy and the planners,
+  results/map_set_<set>.json; the exact planner's sample, results/optimum_<set>.json), then the
+  planners and the general agent over each set's whole protocol, when committed;
 - tables inside the prose pages, between ``<!-- results:NAME:start -->`` and its end marker:
   the bundled maps (docs/maps.md, from the maps), the reference planners on A, B and C
   (docs/grid.md, results/planners_abc.json) and the general agent beside the planners on the
@@ -35,6 +37,7 @@ PAGES = ROOT / "docs" / "results"
 README = ROOT / "README.md"
 HEADLINE = ("<!-- results:headline:start -->", "<!-- results:headline:end -->")
 COMMAND = "`python scripts/results_docs.py`"
+MAP_SET_COMMAND = "python scripts/results_flights.py map-set"
 GENERATED = f"<!-- Written by {COMMAND[1:-1]} from results/; do not edit. -->"
 
 # the headline's rows, best first: (the policy as results name it, what the row says)
@@ -163,41 +166,18 @@ def optimum_page() -> str:
 
 
 def map_set_page(paths: list[Path]) -> str:
-    parts = [
-        GENERATED,
-        "# Results: held-out map sets",
-        "",
-        "The paper's protocol (every landing cell × every budget of the map's size class) on every "
-        "map of a held-out set, on the grid; landing and coverage are means over the maps (each "
-        "map weighs the same), the worst map's landing beside them.",
-    ]
+    """The held-out sets' page: the truth table, then each set's full-protocol table."""
+    from cpp_mujoco.review.truth_table import map_set_page as page
+
+    entries = []
     for path in paths:
         data = json.loads(path.read_text(encoding="utf-8"))
-        spec = data["map_set"]
-        agent = any("general" in row["policy"] for row in data["policies"])
-        planners_only = "" if agent else " --no-agent"
-        parts += [
-            "",
-            f"## {spec['name']} ({spec['evaluated']} of its {spec['count']} maps, "
-            f"{spec['size']}×{spec['size']})",
-            "",
-            "| policy | maps | episodes | landing | coverage | worst map's landing |",
-            "|---|---|---|---|---|---|",
-        ]
-        for row in data["policies"]:
-            parts.append(
-                f"| {row['policy']} | {row['maps']} | {row['episodes']} | "
-                f"{row['mean_landing_ratio']:.2%} | {row['mean_coverage_ratio']:.2%} | "
-                f"{row['min_landing_ratio']:.2%} |"
-            )
-        parts += [
-            "",
-            f"The {data['backend']} backend, budgets {budgets_text(data)}, version "
-            f"{spec['version']} of the set. From `results/{path.name}`, flown by "
-            f"`{MAP_SET_COMMAND} --map-set {spec['name']}{planners_only}` (`cpp-mujoco evaluate "
-            "--map-set`).",
-        ]
-    return "\n".join(parts) + "\n"
+        name = data["map_set"]["name"]
+        more = [f"network_alone_{name}.json", f"optimum_{name}.json"]
+        entries.append(
+            (path.name, data, *(load(f) if (RESULTS / f).is_file() else None for f in more))
+        )
+    return page(entries, GENERATED, MAP_SET_COMMAND)
 
 
 # ------------------------------------------------------------------ grid → MuJoCo (transfer)
@@ -240,7 +220,6 @@ def grid_wind_page() -> str:
 
 
 # ------------------------------------------------------------------------- held-out map sets
-MAP_SET_COMMAND = "python scripts/results_flights.py map-set"
 
 
 # ------------------------------------------------------- tables inside the prose pages

@@ -5,7 +5,10 @@
     python scripts/results_flights.py transfer --budget-step 1 --wind-agents
                                                       # results/transfer_abc_wind.json
     python scripts/results_flights.py map-set --map-set heldout32-v1   # results/map_set_*.json
-    python scripts/results_flights.py map-set --map-set city32-v1 --no-agent
+    python scripts/results_flights.py map-set --map-set city32-v1 --agent general-city
+    python scripts/results_flights.py map-set --map-set city50-v1 --no-agent
+    python scripts/results_flights.py network-alone --map-set heldout16-v1
+                                                      # results/network_alone_*.json
     python scripts/results_flights.py energy                      # results/action_energy.json
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
     python scripts/results_flights.py calibration                 # results/calibration.json
@@ -56,21 +59,33 @@ def transfer(workers: int, budget_step: int, wind_agents: bool = False) -> None:
     write(f"transfer_abc{suffix.replace('-', '_')}.json", {"command": command, "results": rows})
 
 
-def map_set(name: str, agent: bool = True) -> None:
-    """``cpp-mujoco evaluate --map-set NAME`` for the planners and the general agent (not with
-    ``agent`` False: a set it does not fit, e.g. obstacles it cannot see) on the grid (every map,
-    the whole protocol): results/map_set_<NAME>.json."""
+def map_set(name: str, agent: str | None = "general") -> None:
+    """``cpp-mujoco evaluate --map-set NAME`` for the planners and a general agent (none: a set
+    it does not fit, e.g. obstacles it cannot see) on the grid (every map, the whole protocol):
+    results/map_set_<NAME>.json."""
+    args = ["--planner", "safe-greedy", "beam-search", *(["--agent", agent] if agent else [])]
+    _evaluate_set(name, args, f"map_set_{name}.json")
+
+
+def network_alone(name: str, agent: str) -> None:
+    """The general agent's network with the return rule only (no revisit or finish mask) on a
+    map set, the whole protocol on the grid: results/network_alone_<NAME>.json."""
+    _evaluate_set(name, ["--agent", agent, "--rule", "return-mask"], f"network_alone_{name}.json")
+
+
+def _evaluate_set(name: str, args: list[str], result: str) -> None:
     import shutil
     import tempfile
 
     from cpp_mujoco.cli.main import main as cli
 
     with tempfile.TemporaryDirectory() as out:
-        args = ["evaluate", "--map-set", name, "--planner", "safe-greedy", "beam-search"]
-        code = cli([*args, *(["--agent", "general"] if agent else []), "--out", out])
+        code = cli(["evaluate", "--map-set", name, *args, "--out", out])
         if code:
             raise SystemExit(code)
-        shutil.copyfile(Path(out) / f"grid_{name}.json", RESULTS / f"map_set_{name}.json")
+        (written,) = Path(out).glob("grid_*.json")
+        shutil.copyfile(written, RESULTS / result)
+    print(f"wrote results/{result}")
 
 
 def planners() -> None:
@@ -169,9 +184,16 @@ def main(argv=None) -> int:
     )
     p.add_argument(
         "family",
-        choices=["planners", "transfer", "map-set", "energy", "wind-agents", "calibration"],
-    )
+        choices=[
+            "planners", "transfer", "map-set", "network-alone", "energy", "wind-agents",
+            "calibration",
+        ],
+    )  # fmt: skip
     p.add_argument("--map-set", default="heldout16-v1", help="map-set: which set")
+    p.add_argument(
+        "--agent", default="general",
+        help="map-set, network-alone: the general agent flown (general-city on the city sets)",
+    )  # fmt: skip
     p.add_argument("--no-agent", action="store_true", help="map-set: the planners only")
     p.add_argument("--workers", type=int, default=2, help="transfer: MuJoCo worker processes")
     p.add_argument("--budget-step", type=int, default=10, help="transfer: every n-th budget")
@@ -183,7 +205,9 @@ def main(argv=None) -> int:
     elif args.family == "transfer":
         transfer(args.workers, args.budget_step, args.wind_agents)
     elif args.family == "map-set":
-        map_set(args.map_set, not args.no_agent)
+        map_set(args.map_set, None if args.no_agent else args.agent)
+    elif args.family == "network-alone":
+        network_alone(args.map_set, args.agent)
     elif args.family == "wind-agents":
         wind_agents()
     elif args.family == "calibration":

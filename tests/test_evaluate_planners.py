@@ -46,6 +46,16 @@ def test_beam_search_lands_always_and_is_at_least_as_good_as_greedy(greedy_resul
         assert beam.coverage_ratio >= greedy_results[name].coverage_ratio - 0.01
 
 
+def test_beam_width_is_named_and_checked():
+    assert BeamSearchPlanner().name == "beam-search"
+    wide = BeamSearchPlanner(width=64)
+    assert wide.name == "beam-search[width 64]"
+    assert evaluate(wide, "C", budgets=[30]).summary()["policy"] == "beam-search[width 64]"
+    for bad in (0, -3, 2.5, True):
+        with pytest.raises(ValueError, match="beam width must be a positive integer"):
+            BeamSearchPlanner(width=bad)
+
+
 def test_random_planner_is_a_floor(greedy_results):
     result = evaluate(RandomPlanner(seed=0), "B")
     assert result.coverage_ratio < 0.2 < greedy_results["B"].coverage_ratio

@@ -153,11 +153,18 @@ class _Replay:
         return column
 
 
-class BeamSearchPlanner:
-    name = "beam-search"
+DEFAULT_WIDTH = 32  # the yardstick's width: a protocol of 16×16 maps in seconds
 
-    def __init__(self, width: int = 32, fov_side: int = 3):
+
+class BeamSearchPlanner:
+    """Beam search of ``width`` paths per episode; results name a width other than the
+    default (``beam-search[width 512]``), since coverage grows with it."""
+
+    def __init__(self, width: int = DEFAULT_WIDTH, fov_side: int = 3):
+        if isinstance(width, bool) or not isinstance(width, int) or width < 1:
+            raise ValueError(f"beam width must be a positive integer, got {width!r}")
         self.width = width
+        self.name = "beam-search" if width == DEFAULT_WIDTH else f"beam-search[width {width}]"
         self.fov_side = fov_side
         self._plans: np.ndarray | None = None  # (N, T) actions
         self._pos: np.ndarray | None = None  # (N, T) expected position before each action

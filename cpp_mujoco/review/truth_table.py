@@ -1,0 +1,162 @@
+"""Every held-out set in one table, against its limit: the general agent's network with the return
+rule only, the bundled policy with its rules, the two planners, and how far above beam search the
+exact planner's best missions and proven bound lie on a seeded sample of the same protocol.
+
+The full-protocol columns and the sample columns are different episodes, so the sample's numbers
+are given as gaps to beam search on that sample, never as a coverage beside the others."""
+
+from __future__ import annotations
+
+PLANNERS = ("safe-greedy", "beam-search")
+TRUTH_TEXT = (
+    "Coverage · landing, means over the set's maps. *Network + return rule*: the general agent's "
+    "network with the return rule only (`--rule return-mask`; "
+    "`python scripts/results_flights.py network-alone --map-set SET`, "
+    "results/network_alone_SET.json). *Bundled policy*: the bundled general agent with its own "
+    "rules (the return, revisit and finish masks); on the city sets the city-trained "
+    "`general-city`, which reads obstacles; — where no bundled agent fits the set. The last two "
+    "columns come from a seeded sample of the same protocol solved by the exact planner "
+    "(`scripts/optimum_sample.py`, results/optimum_SET.json): how far the best missions found "
+    "and the proven bound lie above beam search's missions on those episodes, in points of "
+    "coverage; — where no sample is solved."
+)
+
+
+def _cell(row: dict | None) -> str:
+    if row is None:
+        return "—"
+    return f"{row['mean_coverage_ratio']:.2%} · {row['mean_landing_ratio']:.2%}"
+
+
+def bundled_row(data: dict) -> dict | None:
+    """The set file's agent row flown with its own rules (``ddqn[NAME]``), if any."""
+    rows = [
+        r
+        for r in data["policies"]
+        if r["policy"].startswith("ddqn[") and "rules:" not in r["policy"]
+    ]
+    return rows[0] if rows else None
+
+
+def network_row(data: dict | None) -> dict | None:
+    """The network-alone file's one agent row (``ddqn[NAME, rules: return-mask]``)."""
+    if data is None:
+        return None
+    rows = [r for r in data["policies"] if r["policy"].endswith("rules: return-mask]")]
+    if len(rows) != 1:
+        names = [r["policy"] for r in data["policies"]]
+        raise ValueError(f"a network-alone result holds one return-mask agent row, not {names}")
+    return rows[0]
+
+
+def _sample_gaps(optimum: dict | None) -> tuple[str, str]:
+    if optimum is None:
+        return "—", "—"
+    beam = optimum["policies"].get("beam-search")
+    if beam is None:
+        return "—", "—"
+    n = len(optimum["episodes"])
+    proven = optimum["statuses"].get("optimal", 0)
+    best = (optimum["best_found"] - beam["coverage"]) * 100
+    bound = (optimum["bound"] - beam["coverage"]) * 100
+    return f"+{best:.2f} pt ({proven}/{n} proven)", f"+{bound:.2f} pt"
+
+
+def _same_protocol(data: dict, other: dict) -> None:
+    """Two full-protocol files of one set: same set version and maps, same conditions."""
+    keys = ("name", "version", "count", "evaluated", "first_seed")
+    if [data["map_set"][k] for k in keys] != [other["map_set"][k] for k in keys] or data[
+        "conditions"
+    ] != other["conditions"]:
+        raise ValueError(f"{data['map_set']['name']}: the network-alone file flew another protocol")
+
+
+def _same_maps(data: dict, optimum: dict) -> None:
+    """An optimum sample drawn from the set's own maps (by digest)."""
+    digests = {r["map_digest"] for r in data["rows"]}
+    foreign = {e["map_digest"] for e in optimum["episodes"]} - digests
+    if optimum["map_set"] != data["map_set"]["name"] or foreign:
+        raise ValueError(
+            f"{data['map_set']['name']}: the optimum sample holds maps not in the set: "
+            f"{sorted(foreign)[:3]}"
+        )
+
+
+def truth_table(entries: list[tuple[dict, dict | None, dict | None]]) -> str:
+    """One row per set from ``(map_set file, network-alone file or None, optimum sample or
+    None)``: coverage · landing over the full protocol, then the sample's gaps."""
+    lines = [
+        "| set | episodes | network + return rule | bundled policy | safe greedy | beam search "
+        "| best missions − beam (sample) | bound − beam (sample) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for data, network, optimum in entries:
+        by_name = {r["policy"]: r for r in data["policies"]}
+        episodes = {r["episodes"] for r in data["policies"]}
+        if network is not None:
+            _same_protocol(data, network)
+            episodes.add(network_row(network)["episodes"])
+        if optimum is not None:
+            _same_maps(data, optimum)
+        if len(episodes) != 1:
+            raise ValueError(f"{data['map_set']['name']}: policies flew different episode counts")
+        bundled = bundled_row(data)
+        label = (
+            f" ({bundled['policy']})" if bundled and bundled["policy"] != "ddqn[general]" else ""
+        )
+        best, bound = _sample_gaps(optimum)
+        lines.append(
+            f"| {data['map_set']['name']} | {episodes.pop()} | {_cell(network_row(network))} | "
+            f"{_cell(bundled)}{label} | {_cell(by_name.get(PLANNERS[0]))} | "
+            f"{_cell(by_name.get(PLANNERS[1]))} | {best} | {bound} |"
+        )
+    return "\n".join(lines)
+
+
+def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
+    """The held-out sets' page from ``(file name, map_set file, network-alone file or None,
+    optimum sample or None)`` per set: the truth table, then each set's policies."""
+    table = truth_table([(data, network, optimum) for _, data, network, optimum in entries])
+    parts = [
+        generated,
+        "# Results: held-out map sets",
+        "",
+        "The paper's protocol (every landing cell × every budget of the map's size class) on every "
+        "map of a held-out set, on the grid; landing and coverage are means over the maps (each "
+        "map weighs the same), the worst map's landing beside them.",
+        "",
+        "## Every set against its limit",
+        "",
+        table,
+        "",
+        TRUTH_TEXT,
+    ]
+    for file_name, data, _, _ in entries:
+        spec = data["map_set"]
+        agent = bundled_row(data)
+        option = {None: " --no-agent", "ddqn[general]": ""}.get(
+            agent and agent["policy"], f" --agent {agent and agent['policy'][5:-1]}"
+        )
+        budgets = data["budgets"]
+        every = "" if budgets["step"] == 1 else f" every {budgets['step']}"
+        parts += [
+            "",
+            f"## {spec['name']} ({spec['evaluated']} of its {spec['count']} maps, "
+            f"{spec['size']}×{spec['size']})",
+            "",
+            "| policy | maps | episodes | landing | coverage | worst map's landing |",
+            "|---|---|---|---|---|---|",
+        ]
+        for row in data["policies"]:
+            parts.append(
+                f"| {row['policy']} | {row['maps']} | {row['episodes']} | "
+                f"{row['mean_landing_ratio']:.2%} | {row['mean_coverage_ratio']:.2%} | "
+                f"{row['min_landing_ratio']:.2%} |"
+            )
+        parts += [
+            "",
+            f"The {data['backend']} backend, budgets {budgets['min']}..{budgets['max']}{every}, "
+            f"version {spec['version']} of the set. From `results/{file_name}`, flown by "
+            f"`{command} --map-set {spec['name']}{option}` (`cpp-mujoco evaluate --map-set`).",
+        ]
+    return "\n".join(parts) + "\n"

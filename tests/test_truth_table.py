@@ -1,0 +1,68 @@
+"""The truth table of the held-out sets: each column from its own file, refusing files that do
+not belong together."""
+
+import copy
+import json
+from pathlib import Path
+
+import pytest
+
+from cpp_mujoco.review.truth_table import bundled_row, network_row, truth_table
+
+RESULTS = Path(__file__).resolve().parent.parent / "results"
+
+
+def load(name: str) -> dict:
+    return json.loads((RESULTS / name).read_text(encoding="utf-8"))
+
+
+def as_network_alone(data: dict) -> dict:
+    """A network-alone file made from a set file: its agent row relabelled, the planners gone."""
+    out = copy.deepcopy(data)
+    (row,) = [r for r in out["policies"] if r["policy"] == "ddqn[general]"]
+    row["policy"] = "ddqn[general, rules: return-mask]"
+    row["mean_coverage_ratio"] = 0.5
+    out["policies"] = [row]
+    return out
+
+
+def test_row_holds_each_column_and_the_sample_gaps():
+    data, optimum = load("map_set_heldout16-v1.json"), load("optimum_heldout16-v1.json")
+    table = truth_table([(data, as_network_alone(data), optimum)])
+    (row,) = [line for line in table.splitlines() if line.startswith("| heldout16-v1")]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[1] == str(data["policies"][0]["episodes"])
+    assert cells[2] == "50.00% · 100.00%"
+    assert cells[3] == f"{bundled_row(data)['mean_coverage_ratio']:.2%} · 100.00%"
+    beam = optimum["policies"]["beam-search"]["coverage"]
+    proven = optimum["statuses"]["optimal"]
+    assert cells[6] == f"+{(optimum['best_found'] - beam) * 100:.2f} pt ({proven}/120 proven)"
+    assert cells[7] == f"+{(optimum['bound'] - beam) * 100:.2f} pt"
+
+
+def test_missing_columns_are_dashes_not_numbers():
+    data = load("map_set_city50-v1.json")
+    assert bundled_row(data) is None
+    (row,) = truth_table([(data, None, None)]).splitlines()[2:]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[2] == cells[3] == cells[6] == cells[7] == "—"
+
+
+def test_files_of_another_protocol_or_other_maps_are_refused():
+    data = load("map_set_heldout16-v1.json")
+    other = as_network_alone(data)
+    other["conditions"]["budgets"]["step"] = 5
+    with pytest.raises(ValueError, match="another protocol"):
+        truth_table([(data, other, None)])
+    with pytest.raises(ValueError, match="maps not in the set"):
+        truth_table([(data, None, load("optimum_heldout32-v1.json"))])
+    shorter = as_network_alone(data)
+    shorter["policies"][0]["episodes"] -= 1
+    with pytest.raises(ValueError, match="different episode counts"):
+        truth_table([(data, shorter, None)])
+
+
+def test_network_alone_file_must_hold_the_return_rule_row():
+    data = load("map_set_heldout16-v1.json")
+    with pytest.raises(ValueError, match="one return-mask agent row"):
+        network_row(data)
