@@ -66,3 +66,12 @@ def test_network_alone_file_must_hold_the_return_rule_row():
     data = load("map_set_heldout16-v1.json")
     with pytest.raises(ValueError, match="one return-mask agent row"):
         network_row(data)
+
+
+def test_the_committed_network_alone_file_fits_its_set():
+    data, network = load("map_set_heldout16-v1.json"), load("network_alone_heldout16-v1.json")
+    row = network_row(network)
+    assert row["policy"] == "ddqn[general, rules: return-mask]"
+    assert network["conditions"]["policy"]["finish_mask"] is False
+    (line,) = truth_table([(data, network, None)]).splitlines()[2:]
+    assert f"| {row['mean_coverage_ratio']:.2%} · {row['mean_landing_ratio']:.2%} |" in line
