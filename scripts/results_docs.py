@@ -292,6 +292,9 @@ def in_page_tables() -> dict[Path, str]:
     if (RESULTS / "benchmark.json").is_file():
         table = benchmark_table(load("benchmark.json"), "results/benchmark.json")
         tables[docs / "scaling.md"] = [("benchmark", table)]
+    if (RESULTS / "decision_time.json").is_file():
+        table = benchmark_table(load("decision_time.json"), "results/decision_time.json")
+        tables.setdefault(docs / "scaling.md", []).append(("decision", table))
     if (RESULTS / "calibration.json").is_file():
         table = doc_tables.calibration_table(load("calibration.json"), "results/calibration.json")
         tables[docs / "battery.md"] = [("calibration", table)]

@@ -2,6 +2,7 @@
 four stages, and check it on its validation maps.
 
     python scripts/train_general.py --out runs/general [--install] [-- more train-general options]
+    python scripts/train_general.py --out runs/general --city --install   # general-city
 
 Stage 1 (:data:`STAGES`, ``OUT/stage1``) learns to fly generated 16×16 and 32×32 maps without
 the return mask, guided by the safe greedy planner and taught by beam-search demonstrations: the
@@ -20,6 +21,10 @@ wind option (0–12 m/s, 35 % calm, the wind inputs starting at zero weight, the
 at the observed wind), guided by ``safe-greedy-wind`` and taught by ``beam-search-wind`` on the
 16×16 maps (the wind planners take minutes a 32×32 map) for 12,000 updates; its ``best.pt``
 (chosen on landing in wind) is ``general-wind`` (``--install`` copies it to ``general-wind.pt``).
+``--city`` adds ``OUT/stage5-city`` after stage 4: its ``best.pt`` fine-tuned on city maps
+(buildings that hide targets, the obstacle layer as an input at zero weight to start, 8,192 city
+maps per size) at 1e-4 for 12,000 updates; its ``best.pt`` (chosen on the city validation maps)
+is ``general-city`` (``--install`` copies it to ``general-city.pt``).
 Run again, the script resumes a stage whose folder holds a ``checkpoint.pt`` and skips a
 finished one (docs/agent.md, "The general agent").
 """
@@ -33,7 +38,13 @@ import sys
 import time
 from pathlib import Path
 
-from cpp_mujoco.agent import BUNDLED_DIR, GENERAL_AGENT, GENERAL_WIND_AGENT, load_agent
+from cpp_mujoco.agent import (
+    BUNDLED_DIR,
+    GENERAL_AGENT,
+    GENERAL_CITY_AGENT,
+    GENERAL_WIND_AGENT,
+    load_agent,
+)
 from cpp_mujoco.agent.general_eval import validate
 from cpp_mujoco.agent.map_pool import VALIDATION_SEEDS, MapPool
 from cpp_mujoco.cli.main import main as cli_main
@@ -77,13 +88,23 @@ WIND_STAGE = ("stage4-wind", [
     "--set", "wind_planner_sigmas=4.0",
     "--set", "best_by=landing", "--set", "final_eval=false",
 ])  # fmt: skip
+CITY_STAGE = ("stage5-city", [
+    "--init-from", "{stage4}/best.pt", "--target-input", "--set", "obstacle_input=true",
+    "--set", "map_family=city", "--maps-per-size", "8192", "--set", "demo_maps_per_size=32",
+    "--learning-rate", "0.0001", "--set", "guide_updates=200000", "--total-updates", "12000",
+    "--eval-every", "3000", "--set", "val_maps_per_size=8", "--set", "checkpoint_every=1500",
+])  # fmt: skip
 WIND_VALIDATION = GridWind(max_speed=12.0, calm_fraction=0.35)  # the stage's own wind option
 
 
-def stage_commands(out: Path, extra: list[str], wind: bool = False) -> list[tuple[Path, list[str]]]:
+def stage_commands(
+    out: Path, extra: list[str], wind: bool = False, city: bool = False
+) -> list[tuple[Path, list[str]]]:
     """(folder, ``cpp-mujoco`` argv) of each stage in ``out``, in order (``wind``: the wind stage
-    in place of stage 4)."""
-    stages = [*BASE_STAGES, WIND_STAGE] if wind else STAGES
+    in place of stage 4; ``city``: the city stage after it)."""
+    if wind and city:
+        raise ValueError("--wind and --city train two different agents: give one")
+    stages = [*BASE_STAGES, WIND_STAGE] if wind else [*STAGES, CITY_STAGE] if city else STAGES
     names = {folder: str(out / folder) for folder, _ in stages}
     runs = []
     for folder, options in stages:
@@ -106,10 +127,14 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="runs/general", help="one run folder per stage in here")
     p.add_argument("--install", action="store_true", help="copy best.pt into the package")
     p.add_argument("--wind", action="store_true", help="the wind stage in place of stage 4")
+    p.add_argument("--city", action="store_true", help="the city stage after stage 4")
     p.add_argument("extra", nargs="*", help="further train-general options, after --")
     args = p.parse_args(argv)
     out, t0 = Path(args.out), time.time()
-    runs = stage_commands(out, args.extra, args.wind)
+    try:
+        runs = stage_commands(out, args.extra, args.wind, args.city)
+    except ValueError as e:
+        p.error(str(e))
     for folder, cmd in runs:
         if (folder / "checkpoint.pt").exists():
             if folder != runs[-1][0] and (folder / "final_eval.json").exists():
@@ -125,7 +150,9 @@ def main(argv=None) -> int:
             return code
     kept = runs[-1][0] / "best.pt"
     agent = load_agent(kept)
-    pool = MapPool.generate((16, 32), 8, VALIDATION_SEEDS.start)
+    pool = MapPool.generate(
+        (16, 32), 8, VALIDATION_SEEDS.start, **({"family": "city"} if args.city else {})
+    )
     if args.wind:  # the wind stage is judged in its own wind, its return rule with its margin
         pool = pool.flown_with(WIND_VALIDATION, agent.wind_margin)
     result = validate(agent, pool, 5)
@@ -138,7 +165,9 @@ def main(argv=None) -> int:
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2))
     print(json.dumps(summary["validation"]))
     if args.install:
-        name = GENERAL_WIND_AGENT if args.wind else GENERAL_AGENT
+        name = (
+            GENERAL_WIND_AGENT if args.wind else GENERAL_CITY_AGENT if args.city else GENERAL_AGENT
+        )
         atomic_write_bytes(BUNDLED_DIR / f"{name}.pt", kept.read_bytes())
     return 0
 

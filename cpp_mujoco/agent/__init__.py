@@ -26,7 +26,10 @@ BUNDLED_DIR = Path(__file__).resolve().parent / "bundled"
 GENERAL_AGENT = "general"  # bundled/general.pt: the general agent (scripts/train_general.py)
 # bundled/general-wind.pt: the general agent fine-tuned in the grid's wind option (stage 4)
 GENERAL_WIND_AGENT = "general-wind"
-GENERAL_AGENTS = (GENERAL_AGENT, GENERAL_WIND_AGENT)  # they fly any map; the rest one map each
+# bundled/general-city.pt: the general agent fine-tuned on city maps, reading their obstacles
+GENERAL_CITY_AGENT = "general-city"
+# they fly any map; the rest one map each
+GENERAL_AGENTS = (GENERAL_AGENT, GENERAL_WIND_AGENT, GENERAL_CITY_AGENT)
 
 
 def bundled_agents() -> list[str]:
@@ -104,6 +107,7 @@ __all__ = [
     "CheckpointError",
     "GENERAL_AGENT",
     "GENERAL_AGENTS",
+    "GENERAL_CITY_AGENT",
     "GENERAL_WIND_AGENT",
     "GreedyAgent",
     "MapSizeError",

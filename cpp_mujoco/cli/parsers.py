@@ -35,6 +35,7 @@ SECTIONS: dict[str, str] = {
     "physics": "cpp_mujoco.bench.physics",
     "training": "cpp_mujoco.bench.agent",
     "review": "cpp_mujoco.bench.review",
+    "decision": "cpp_mujoco.bench.decision",
 }
 
 

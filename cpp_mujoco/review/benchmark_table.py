@@ -79,6 +79,25 @@ _BENCH_ROWS = (
 )
 
 
+_DECISION_POLICIES = (
+    ("general", "general agent with its rules", "≤ 20 ms"),
+    ("general_network_alone", "general agent, network + return rule", "≤ 20 ms"),
+    ("safe_greedy", "safe greedy planner", ""),
+    ("beam_search", "beam search planner", ""),
+)
+_BENCH_ROWS += tuple(
+    (f"one UAV's decision, {label}, {size}×{size}: mean per action", ("decision", key),
+     "{:.1f} ms", target)
+    for size in (16, 32)
+    for name, label, target in _DECISION_POLICIES
+    for key in [f"{name}_{size}x{size}_ms_mean"]
+) + tuple(
+    (f"beam search's first decision (its whole plan), {size}×{size}",
+     ("decision", f"beam_search_{size}x{size}_ms_max"), "{:.0f} ms", "")
+    for size in (16, 32)
+)  # fmt: skip
+
+
 def benchmark_table(data: dict, source: str) -> str:
     """``cpp-mujoco benchmark``'s report as the scaling page's table, with the targets each
     measure is held to and the machine's load while it ran (a loaded machine: lower bounds)."""

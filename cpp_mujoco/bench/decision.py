@@ -1,0 +1,75 @@
+"""Decision time: how long one UAV's policy takes to choose an action on one core (one torch
+thread), per policy and map size — what a computer on board has to afford (the ``decision``
+section of ``cpp-mujoco benchmark``).
+
+Each policy flies whole single-UAV episodes on the first map of heldout16-v1 and heldout32-v1
+(budgets spread over the size class); every ``act`` call is timed. The mean is the cost per
+action; the maximum is the slowest single decision (beam search plans its whole mission at the
+first action and then follows it)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import torch
+
+from cpp_mujoco.agent import GENERAL_AGENT, load_agent
+from cpp_mujoco.grid.mdp import GridMDP
+from cpp_mujoco.map_sets.sets import load_map_set
+from cpp_mujoco.map_sets.size_classes import budget_range, size_config
+from cpp_mujoco.planners import BeamSearchPlanner, SafeGreedyPlanner
+from cpp_mujoco.protocol.episode import run_batch
+
+
+class _Timed:
+    """A policy whose every ``act`` is timed (one UAV: a batch of one)."""
+
+    def __init__(self, policy):
+        self.policy, self.seconds = policy, []
+
+    def reset(self, num_episodes: int, seed: int | None = None) -> None:
+        reset = getattr(self.policy, "reset", None)
+        if callable(reset):
+            reset(num_episodes, seed)
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        start = time.perf_counter()
+        actions = self.policy.act(obs)
+        self.seconds.append(time.perf_counter() - start)
+        return actions
+
+
+def decision_times(policy, size: int, episodes: int = 4) -> np.ndarray:
+    """Seconds of each decision over ``episodes`` single-UAV episodes on the set's first map."""
+    grid_map = load_map_set(f"heldout{size}-v1", first=1)[0]
+    low, high = budget_range(size)
+    timed = _Timed(policy)
+    for k, budget in enumerate(np.linspace(low, high, episodes).round().astype(int)):
+        mdp = GridMDP(grid_map, 1, size_config(size))
+        mdp.reset(np.random.default_rng(k), budget=np.array([budget]))
+        run_batch(mdp, timed, seed=k)
+    return np.array(timed.seconds)
+
+
+def run() -> dict:
+    """The ``decision`` section as ``cpp-mujoco benchmark`` runs it."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        agent = load_agent(GENERAL_AGENT)
+        policies = {
+            "general": agent,  # with its rules: return, revisit and finish masks
+            "general_network_alone": agent.with_rules(["return-mask"]),
+            "safe_greedy": SafeGreedyPlanner(),
+            "beam_search": BeamSearchPlanner(),
+        }
+        result = {"torch_threads": 1}
+        for size in (16, 32):
+            for name, policy in policies.items():
+                seconds = decision_times(policy, size)
+                result[f"{name}_{size}x{size}_ms_mean"] = float(seconds.mean() * 1000)
+                result[f"{name}_{size}x{size}_ms_max"] = float(seconds.max() * 1000)
+        return result
+    finally:
+        torch.set_num_threads(threads)
