@@ -174,7 +174,7 @@ def write_doc(data: dict, check: bool = False) -> int:
 
 
 def main(argv=None) -> int:
-    from cpp_mujoco.cli.options import positive_seconds
+    from cpp_mujoco.cli.options import int_at_least, positive_seconds
 
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -190,7 +190,7 @@ def main(argv=None) -> int:
         "obstacles: leave it out there)",
     )  # fmt: skip
     p.add_argument(
-        "--beam-width", type=int, default=0,
+        "--beam-width", type=int_at_least(0), default=0,
         help="also fly beam search of this many paths per episode (0: none): a policy of its "
         "own in the table, and its missions warm-start the solver where they see more",
     )  # fmt: skip
