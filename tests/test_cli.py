@@ -99,7 +99,7 @@ def test_every_benchmark_section_is_a_module_with_run():
 
     from cpp_mujoco.cli.benchmark import SECTIONS
 
-    assert list(SECTIONS) == ["grid", "physics", "training", "review"]
+    assert list(SECTIONS) == ["grid", "physics", "training", "review", "decision"]
     for name, module in SECTIONS.items():
         run = importlib.import_module(module).run
         required = [p for p in inspect.signature(run).parameters.values() if p.default is p.empty]
@@ -110,7 +110,7 @@ def test_unknown_benchmark_section_is_one_line_before_anything_runs(tmp_path, ca
     code = main(["benchmark", "--only", "grid", "gpu", "--json", str(tmp_path / "b.json")])
     assert code == 2
     err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "'gpu'" in err and "known: grid, physics, training, review" in err
+    assert "\n" not in err and "'gpu'" in err and "known: grid, physics, training, review, decision" in err
     assert not (tmp_path / "b.json").exists()
 
 
