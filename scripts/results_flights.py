@@ -9,6 +9,7 @@
     python scripts/results_flights.py map-set --map-set city50-v1 --no-agent
     python scripts/results_flights.py network-alone --map-set heldout16-v1
                                                       # results/network_alone_*.json
+    python scripts/results_flights.py network-alone --map-set city32-v1 --agent general-city
     python scripts/results_flights.py energy                      # results/action_energy.json
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
     python scripts/results_flights.py calibration                 # results/calibration.json
