@@ -110,7 +110,8 @@ def test_unknown_benchmark_section_is_one_line_before_anything_runs(tmp_path, ca
     code = main(["benchmark", "--only", "grid", "gpu", "--json", str(tmp_path / "b.json")])
     assert code == 2
     err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "'gpu'" in err and "known: grid, physics, training, review, decision" in err
+    assert "\n" not in err and "'gpu'" in err
+    assert "known: grid, physics, training, review, decision" in err
     assert not (tmp_path / "b.json").exists()
 
 
