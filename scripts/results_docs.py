@@ -59,12 +59,6 @@ def policy_key(policy: str) -> str:
     return policy_column(policy)
 
 
-def budgets_text(conditions: dict) -> str:
-    b = conditions["budgets"]
-    every = "" if b["step"] == 1 else f" every {b['step']}"
-    return f"{b['min']}..{b['max']}{every}"
-
-
 def shared(rows: list[dict], key: str) -> object:
     """The one value every row has for ``key`` (conditions the table states once)."""
     values = {json.dumps(r[key], sort_keys=True) for r in rows}
@@ -79,7 +73,9 @@ def headline(data: dict) -> str:
     rows = data["results"]
     maps = list(dict.fromkeys(r["map"] for r in rows))
     backend = shared(rows, "backend")
-    budgets = {budgets_text(r["conditions"]) for r in rows}
+    from cpp_mujoco.review.doc_tables import budget_range_text
+
+    budgets = {budget_range_text(r["conditions"]) for r in rows}
     if len(budgets) != 1:
         raise ValueError(f"the headline's results were flown on different budgets: {budgets}")
     cell = {(r["map"], policy_key(r["policy"])): r for r in rows}

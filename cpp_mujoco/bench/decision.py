@@ -20,6 +20,7 @@ from cpp_mujoco.map_sets.sets import load_map_set
 from cpp_mujoco.map_sets.size_classes import budget_range, size_config
 from cpp_mujoco.planners import BeamSearchPlanner, SafeGreedyPlanner
 from cpp_mujoco.protocol.episode import run_batch
+from cpp_mujoco.protocol.policy import start_episodes
 
 
 class _Timed:
@@ -29,9 +30,7 @@ class _Timed:
         self.policy, self.seconds = policy, []
 
     def reset(self, num_episodes: int, seed: int | None = None) -> None:
-        reset = getattr(self.policy, "reset", None)
-        if callable(reset):
-            reset(num_episodes, seed)
+        start_episodes(self.policy, num_episodes, seed)
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         start = time.perf_counter()

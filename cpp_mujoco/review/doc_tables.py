@@ -14,7 +14,8 @@ from cpp_mujoco.review.optimum_table import policy_column
 from cpp_mujoco.util.tables import format_table
 
 
-def _budgets(conditions: dict) -> str:
+def budget_range_text(conditions: dict) -> str:
+    """``25..75`` (``every 5`` where a step was taken) of a result's ``budgets``."""
     b = conditions["budgets"]
     return f"{b['min']}..{b['max']}" + ("" if b["step"] == 1 else f" every {b['step']}")
 
@@ -58,7 +59,7 @@ def planners_table(data: dict, source: str) -> str:
             + f" | {o['coverage_ratio']:.2%} ({o['statuses'].get('optimal', 0)} / "
             f"{o['episodes_known']}) |"
         )
-    budgets = {_budgets(r["conditions"]) for r in rows}
+    budgets = {budget_range_text(r["conditions"]) for r in rows}
     lines += [
         "",
         f"Landing / coverage on the {rows[0]['backend']} backend, every landing cell × budgets "
@@ -243,7 +244,7 @@ def transfer_table(data: dict, source: str) -> str:
             f"{p['landing_ratio']:.2%} | {g['coverage_ratio']:.2%} | {p['coverage_ratio']:.2%} | "
             f"{p['energy_per_action_j']:.0f} | {p['nfz_violations']} | {p['crashes']} |"
         )
-    budgets = {_budgets(r["conditions"]) for r in rows}
+    budgets = {budget_range_text(r["conditions"]) for r in rows}
     lines += [
         "",
         f"Every landing cell × budgets {', '.join(sorted(budgets))}; map digests "

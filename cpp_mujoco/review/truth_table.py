@@ -7,6 +7,8 @@ are given as gaps to beam search on that sample, never as a coverage beside the 
 
 from __future__ import annotations
 
+from cpp_mujoco.review.doc_tables import budget_range_text
+
 PLANNERS = ("safe-greedy", "beam-search")
 TRUTH_TEXT = (
     "Coverage · landing, means over the set's maps. *Network + return rule*: the general agent's "
@@ -36,6 +38,11 @@ def bundled_row(data: dict) -> dict | None:
         if r["policy"].startswith("ddqn[") and "rules:" not in r["policy"]
     ]
     return rows[0] if rows else None
+
+
+def _agent_name(row: dict | None) -> str | None:
+    """The agent a ``ddqn[NAME]`` row flew (None without a row)."""
+    return row and row["policy"].removeprefix("ddqn[").removesuffix("]")
 
 
 def network_row(data: dict | None) -> dict | None:
@@ -104,9 +111,7 @@ def truth_table(entries: list[tuple[dict, dict | None, dict | None]]) -> str:
         if len(episodes) != 1:
             raise ValueError(f"{data['map_set']['name']}: policies flew different episode counts")
         bundled = bundled_row(data)
-        label = (
-            f" ({bundled['policy']})" if bundled and bundled["policy"] != "ddqn[general]" else ""
-        )
+        label = f" ({bundled['policy']})" if _agent_name(bundled) not in (None, "general") else ""
         best, bound = _sample_gaps(optimum)
         lines.append(
             f"| {data['map_set']['name']} | {episodes.pop()} | {_cell(network_row(network))} | "
@@ -136,12 +141,8 @@ def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
     ]
     for file_name, data, _, _ in entries:
         spec = data["map_set"]
-        agent = bundled_row(data)
-        option = {None: " --no-agent", "ddqn[general]": ""}.get(
-            agent and agent["policy"], f" --agent {agent and agent['policy'][5:-1]}"
-        )
-        budgets = data["budgets"]
-        every = "" if budgets["step"] == 1 else f" every {budgets['step']}"
+        agent = _agent_name(bundled_row(data))
+        option = {None: " --no-agent", "general": ""}.get(agent, f" --agent {agent}")
         parts += [
             "",
             f"## {spec['name']} ({spec['evaluated']} of its {spec['count']} maps, "
@@ -158,7 +159,7 @@ def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
             )
         parts += [
             "",
-            f"The {data['backend']} backend, budgets {budgets['min']}..{budgets['max']}{every}, "
+            f"The {data['backend']} backend, budgets {budget_range_text(data)}, "
             f"version {spec['version']} of the set. From `results/{file_name}`, flown by "
             f"`{command} --map-set {spec['name']}{option}` (`cpp-mujoco evaluate --map-set`).",
         ]
