@@ -51,13 +51,17 @@ def best_by_every_sequence(grid_map: GridMap, start, budget: int) -> int:
     return int(mdp.seen_targets[mdp.landed].max())
 
 
-@pytest.mark.parametrize("solver", ["highs", "cp-sat"])
+@pytest.mark.parametrize(
+    "solver, memory, relaxation_start",
+    [("highs", 1, True), ("cp-sat", 1, True), ("highs", 2, True), ("highs", 2, False)],
+)
 @pytest.mark.parametrize("budget", [1, 2, 3, 5, 7])
-def test_the_model_finds_what_every_action_sequence_finds(budget, solver):
+def test_the_model_finds_what_every_action_sequence_finds(budget, solver, memory, relaxation_start):
     grid_map = small_map()
     g = build_graph(grid_map)
+    options = SolverOptions(solver=solver, memory=memory, relaxation_start=relaxation_start)
     for row, col in np.argwhere(grid_map.landing):
-        mission = solve_episode(g, int(row * 5 + col), budget, options=SolverOptions(solver=solver))
+        mission = solve_episode(g, int(row * 5 + col), budget, options=options)
         assert mission.status == "optimal"
         assert mission.seen == mission.bound == best_by_every_sequence(grid_map, (row, col), budget)
         seen, landed = g.fly(int(row * 5 + col), mission.actions, np.zeros(25, bool))
@@ -105,6 +109,8 @@ def test_an_episode_without_a_way_home_is_infeasible_not_a_crash():
     assert mission.status == "infeasible" and mission.actions.size == 0
     with pytest.raises(ValueError, match="time limit"):
         SolverOptions(time_limit_s=float("nan"))
+    with pytest.raises(ValueError, match="memory"):
+        SolverOptions(memory=3)
 
 
 def test_a_mid_episode_replan_counts_what_was_seen():

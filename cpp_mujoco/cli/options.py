@@ -210,6 +210,12 @@ def add_solver_options(p) -> None:
         "(default: %(default)s)",
     )  # fmt: skip
     p.add_argument(
+        "--memory", type=int, choices=(1, 2), default=1,
+        help="cells of memory in the exact planner's model: 2 tightens its bound at every "
+        "branch-and-cut node for about four times the variables, for episodes 1 leaves open "
+        "(default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
         "--jobs", type=int_at_least(1), default=1,
         help="episodes solved at once, one process each (default: %(default)s)",
     )  # fmt: skip
