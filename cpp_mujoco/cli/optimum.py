@@ -18,7 +18,9 @@ from cpp_mujoco.review.optimum_table import optimum_summary
 def optimal_options(args) -> dict:
     """``make_planner("optimal", optimal=...)``'s keyword arguments from the command line."""
     options = SolverOptions(
-        time_limit_s=args.time_limit, workers=args.solver_workers, solver=args.solver,
+        time_limit_s=args.time_limit,
+        workers=args.solver_workers,
+        solver=args.solver,
         memory=args.memory,
     )
     return {"options": options, "cache_folder": optimum_folder(args), "jobs": args.jobs}
