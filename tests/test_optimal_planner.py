@@ -137,6 +137,29 @@ def test_the_cache_is_reused_and_resumed(tmp_path):
     assert len(json.loads(cache.path.read_text())["entries"]) == len(starts)
 
 
+def test_entries_name_the_models_memory_and_the_solver_still_reads_them(tmp_path):
+    grid_map = small_map()
+    starts = np.argwhere(grid_map.landing)[:2]
+    budgets = np.array([7, 9])
+    cache = OptimumCache(tmp_path, grid_map)
+    entries = solve_episodes(grid_map, starts, budgets, SolverOptions(5, memory=2), cache)
+    assert {e["solver"] for e in entries} == {"HiGHS " + _highs_release() + ", 2 cells of memory"}
+    assert all(e["status"] == "optimal" for e in entries)
+    # an unproven entry of the remembered model is HiGHS's: not solved again under the same
+    # limit by HiGHS, solved again by a longer limit or by the other solver
+    start = tuple(starts[0])
+    cache.entries[f"{start[0]},{start[1]},7"]["status"] = "feasible"
+    assert cache.usable(start, 7, "HiGHS 9.9.9", 5)
+    assert not cache.usable(start, 7, "HiGHS 9.9.9", 10)
+    assert not cache.usable(start, 7, "OR-Tools CP-SAT 9.9", 5)
+
+
+def _highs_release() -> str:
+    from cpp_mujoco.planners.optimal_solver import solver_version
+
+    return solver_version("highs").split()[1]
+
+
 def test_a_foreign_or_broken_cache_is_refused_and_kept(tmp_path):
     grid_map = load_map("C")
     path = tmp_path / f"{grid_map.digest}.json"

@@ -94,7 +94,7 @@ def solve_episodes(
     budgets = np.asarray(budgets, dtype=np.int64).reshape(-1)
     keys = [(int(s[0]), int(s[1]), int(b)) for s, b in zip(starts, budgets, strict=True)]
     first = {key: i for i, key in reversed(list(enumerate(keys)))}  # each episode once
-    solver = solver_version(options.solver)
+    solver = solver_version(options.solver, options.memory)
     todo = sorted(
         i
         for i in first.values()
@@ -148,7 +148,10 @@ class OptimalPlanner:
     def identity(self) -> dict:
         """What results record of this planner: the solver, its limits, and what it proved (the
         statuses of the missions this process planned; none where worker processes flew)."""
-        out = {**asdict(self.options), "solver": solver_version(self.options.solver)}
+        out = {
+            **asdict(self.options),
+            "solver": solver_version(self.options.solver, self.options.memory),
+        }
         if self.statuses:
             out["statuses"] = dict(sorted(self.statuses.items()))
         return out

@@ -77,12 +77,15 @@ class Mission:
         return self.status == "optimal"
 
 
-def solver_version(solver: str = "highs") -> str:
-    """The solver and release that solved (results name it)."""
+def solver_version(solver: str = "highs", memory: int = 1) -> str:
+    """The solver and release that solved, and the model's memory where it is not the plain
+    one (results name it; the first word is the solver)."""
     if solver == "highs":
         v = (highspy.HIGHS_VERSION_MAJOR, highspy.HIGHS_VERSION_MINOR, highspy.HIGHS_VERSION_PATCH)
-        return "HiGHS " + ".".join(map(str, v))
-    return f"OR-Tools CP-SAT {ortools.__version__}"
+        name = "HiGHS " + ".".join(map(str, v))
+    else:
+        name = f"OR-Tools CP-SAT {ortools.__version__}"
+    return name if memory == 1 else f"{name}, {memory} cells of memory"
 
 
 @dataclass
