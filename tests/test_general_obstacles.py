@@ -104,7 +104,9 @@ def test_a_network_without_the_channel_refuses_obstacles_and_rebuilds_as_before(
 
 
 # the bundled general agent's Q-values on map A, four episodes of seed 7 after five moves drawn
-# from seed 3, recorded before the obstacle input existed (one torch thread)
+# from seed 3, recorded before the obstacle input existed (one torch thread); equal within 1e-5:
+# torch's CPU kernels differ in the last bits between processors (measured: 1e-6 apart), while
+# any change to the network's inputs or layers moves them by far more
 BUNDLED_Q = [
     [6.844454765319824, 6.13851261138916, 5.161345481872559, 5.955361843109131,
      -0.05613020062446594],
@@ -117,7 +119,7 @@ BUNDLED_Q = [
 ]  # fmt: skip
 
 
-def test_the_bundled_general_agent_acts_bit_for_bit_as_before():
+def test_the_bundled_general_agent_acts_as_before():
     agent = load_agent(GENERAL_AGENT)
     assert not agent.reads_obstacles and "obstacle_input" not in agent.network.kwargs
     mdp = GridMDP(load_map("A"), 4, size_config(16))
@@ -126,7 +128,7 @@ def test_the_bundled_general_agent_acts_bit_for_bit_as_before():
     for _ in range(5):
         mdp.step(rng.integers(0, 4, size=4))
     q = agent.q_values(mdp.observation())
-    assert np.array_equal(q, np.array(BUNDLED_Q, dtype=np.float32))
+    np.testing.assert_allclose(q, np.array(BUNDLED_Q, dtype=np.float32), rtol=0, atol=1e-5)
     assert agent.act(mdp.observation()).tolist() == [0, 0, 1, 0]
 
 
