@@ -5,12 +5,14 @@
     python scripts/optimum_sample.py --map-set city32-v1 --episodes 12 --time-limit 20 \\
         --policies safe-greedy beam-search
     python scripts/optimum_sample.py --map-set heldout16-v1 --beam-width 512   # a wider beam too
+    python scripts/optimum_sample.py --map-set heldout16-v1 --close-gaps 60   # then the search
 
 Draws episodes uniformly over the set's protocol (a map, one of its landing cells, a budget of its
 size class; seeded), flies safe greedy, beam search and the general agent on them, solves each
 into the optimum cache (results/optimum/) from the best of their missions (with
 ``--beam-width W`` also a beam of W paths, whose missions re-open the cached episodes where
-they see more than the cached best), and writes
+they see more than the cached best; with ``--close-gaps S`` the episodes still open then go to the
+exact search, S seconds per question: planners/optimal_search.py), and writes
 results/optimum_<set>.json: per policy its mean coverage, its mean gap to the best missions found
 with the gap's standard error, and how many of the best missions are proven, with the mean bound.
 The table in docs/optimum.md is written from that file (``--render``).
@@ -64,6 +66,19 @@ def solve_one(task):
     return solve_episode(build_graph(grid_map), cell, budget, options=options, hint=hint)
 
 
+def close_one(task) -> None:
+    """One map's open episodes to the exact search, its cache file saved as they close."""
+    from cpp_mujoco.planners.optimal import close_gaps
+    from cpp_mujoco.planners.optimal_search import SearchOptions
+    from cpp_mujoco.protocol.optimum_cache import OptimumCache
+
+    grid_map, episodes, limit = task
+    cache = OptimumCache(ROOT / "results" / "optimum", grid_map)
+    starts = np.array([s for s, _ in episodes])
+    budgets = np.array([b for _, b in episodes])
+    close_gaps(grid_map, starts, budgets, SearchOptions(limit), cache)
+
+
 def run(args) -> dict:
     from cpp_mujoco.agent import load_agent
     from cpp_mujoco.grid.graph import build_graph
@@ -109,6 +124,16 @@ def run(args) -> dict:
             k = next(i for i, m in enumerate(maps) if m is grid_map)
             caches[k].put(s, b, mission, options.time_limit_s, options.workers, solver)
             caches[k].save()
+    if args.close_gaps:
+        open_ = {}  # per map, one worker: its cache file has one writer
+        for k, s, b in sample:
+            if caches[k].get(s, b)["status"] == "feasible":
+                open_.setdefault(k, []).append((s, b))
+        tasks = [(maps[k], episodes, args.close_gaps) for k, episodes in open_.items()]
+        with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
+            for _ in pool.imap_unordered(close_one, tasks):
+                pass
+        caches = {k: OptimumCache(ROOT / "results" / "optimum", maps[k]) for k in caches}
     best, bound, status, solvers = [], [], [], {}
     for k, start, budget in sample:
         entry = caches[k].get(start, budget)
@@ -128,6 +153,7 @@ def run(args) -> dict:
         "solver": solver_version(options.solver),
         "solvers": dict(sorted(solvers.items())),  # which solver's mission each episode keeps
         "time_limit_s": args.time_limit,
+        "search_time_limit_s": args.close_gaps,
         "statuses": {s: status.count(s) for s in sorted(set(status))},
         "best_found": float(best_a.mean()),
         "bound": float(np.mean(bound)),
@@ -193,6 +219,10 @@ def main(argv=None) -> int:
         "--beam-width", type=int_at_least(0), default=0,
         help="also fly beam search of this many paths per episode (0: none): a policy of its "
         "own in the table, and its missions warm-start the solver where they see more",
+    )  # fmt: skip
+    p.add_argument(
+        "--close-gaps", type=positive_seconds, metavar="S",
+        help="then close the open episodes with the exact search, S seconds per question",
     )  # fmt: skip
     p.add_argument("--render", action="store_true", help="only write the doc's table")
     p.add_argument("--check", action="store_true", help="exit 1 if the doc's table drifted")

@@ -7,7 +7,8 @@ from __future__ import annotations
 from cpp_mujoco.cli.options import DEFAULT_CACHE, progress_wanted
 from cpp_mujoco.map_sets.size_classes import map_size, size_config
 from cpp_mujoco.maps import bundled_maps, load_map
-from cpp_mujoco.planners.optimal import solve_episodes
+from cpp_mujoco.planners.optimal import close_gaps, solve_episodes
+from cpp_mujoco.planners.optimal_search import SearchOptions
 from cpp_mujoco.planners.optimal_solver import SolverOptions
 from cpp_mujoco.protocol.evaluate import protocol_budgets, protocol_episodes
 from cpp_mujoco.protocol.optimum import default_folder
@@ -42,8 +43,14 @@ def cmd_optimum(args) -> None:
         starts, per_episode = protocol_episodes(grid_map, budgets)
         if args.first:
             starts, per_episode = starts[: args.first], per_episode[: args.first]
-        entries = solve_episodes(
-            grid_map, starts, per_episode, kwargs["options"], cache, args.jobs,
-            progress=progress_wanted(args),
-        )  # fmt: skip
+        if args.close_gaps:
+            entries = close_gaps(
+                grid_map, starts, per_episode, SearchOptions(time_limit_s=args.time_limit), cache,
+                progress=progress_wanted(args),
+            )  # fmt: skip
+        else:
+            entries = solve_episodes(
+                grid_map, starts, per_episode, kwargs["options"], cache, args.jobs,
+                progress=progress_wanted(args),
+            )  # fmt: skip
         print(optimum_summary(grid_map, entries, cache.path))

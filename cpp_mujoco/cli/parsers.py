@@ -225,6 +225,12 @@ def add_optimum(sub) -> None:
         "--first", type=int_at_least(1), help="only the protocol's first N episodes of each map"
     )
     add_solver_options(p)
+    p.add_argument(
+        "--close-gaps", action="store_true",
+        help="instead of solving, close the cached episodes still open with the exact search "
+        "(can a mission see the bound's count? found: optimal; none: the bound drops by one), "
+        "--time-limit per question",
+    )  # fmt: skip
     add_progress_option(p)
     p.set_defaults(func="cpp_mujoco.cli.optimum:cmd_optimum")
 

@@ -24,9 +24,10 @@ from cpp_mujoco.grid.graph import MapGraph, build_graph, graph_from_observation
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.maps import GridMap
 from cpp_mujoco.planners.beam_search import BeamSearchPlanner
+from cpp_mujoco.planners.optimal_search import CoverageSearch, SearchOptions
 from cpp_mujoco.planners.optimal_solver import Mission, SolverOptions, solve_episode, solver_version
 from cpp_mujoco.planners.rollout import decode_observation, rollout
-from cpp_mujoco.protocol.optimum_cache import OptimumCache
+from cpp_mujoco.protocol.optimum_cache import OptimumCache, tighten
 
 SAVE_EVERY_S = 10.0  # an interrupted solve loses at most this much finished work
 
@@ -128,6 +129,57 @@ def solve_episodes(
             bar.close()
             if cache.path is not None:
                 cache.save()
+    return [cache.get(tuple(s), int(b)) for s, b in zip(starts, budgets, strict=True)]
+
+
+def close_gaps(
+    grid_map: GridMap,
+    starts: np.ndarray,
+    budgets: np.ndarray,
+    options: SearchOptions,
+    cache: OptimumCache,
+    progress: bool = False,
+    fov_side: int = 3,
+) -> list[dict]:
+    """Close the open episodes among these with the exact search (:mod:`.optimal_search`): each
+    is asked whether a mission sees its bound's count — a mission found is optimal, a proof that
+    none exists lowers the bound by one — until the two meet or a question runs out of time.
+
+    The largest budgets go first: the cache's :func:`tighten` carries a bound to every smaller
+    budget and to the nearby starts, so one proof often closes many episodes."""
+    g = build_graph(grid_map, fov_side)
+    width = grid_map.shape[1]
+    keys = sorted(
+        {(int(b), int(s[0]), int(s[1])) for s, b in zip(starts, budgets, strict=True)},
+        reverse=True,
+    )
+    searches: dict[tuple[int, int], CoverageSearch] = {}
+    for budget, row, col in tqdm(keys, desc=f"gaps {grid_map.label}", disable=not progress):
+        entry = cache.get((row, col), budget)
+        while entry is not None and entry["status"] == "feasible":
+            search = searches.get((row, col))
+            if search is None:
+                search = searches[(row, col)] = CoverageSearch(g, row * width + col, options)
+            answer = search.ask(budget, entry["bound"])
+            if answer.status == "unknown":
+                break
+            if answer.seen > entry["bound"]:
+                raise RuntimeError(
+                    f"episode {(row, col, budget)}: the search flew a mission to {answer.seen} "
+                    f"targets, above the cache's proven bound of {entry['bound']}"
+                )
+            if answer.status == "found":
+                mission = Mission(answer.actions, answer.seen, entry["bound"], "feasible",
+                                  answer.time_s)  # fmt: skip
+            else:
+                mission = Mission(np.asarray(entry["actions"], dtype=np.int64), entry["seen"],
+                                  entry["bound"] - 1, "feasible", answer.time_s)  # fmt: skip
+            cache.put((row, col), budget, mission, options.time_limit_s, 1, search.name)
+            if cache.path is not None:
+                cache.save()  # tightened: the proof reaches the other episodes now
+            else:
+                tighten(cache.entries, g)
+            entry = cache.get((row, col), budget)
     return [cache.get(tuple(s), int(b)) for s, b in zip(starts, budgets, strict=True)]
 
 
