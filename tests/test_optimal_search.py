@@ -100,6 +100,8 @@ def test_a_question_out_of_time_is_unknown(monkeypatch):
     g = build_graph(grid_map)
     search = CoverageSearch(g, 0, SearchOptions(time_limit_s=1e-9, key_targets=6))
     assert search.ask(7, 10).status == "unknown"
+    with pytest.raises(ValueError, match="budgets of at most 254"):
+        search.ask(255, 10)
     loose = solve_episode(g, 0, 7)
     cache = OptimumCache.in_memory(grid_map)
     cache.put((0, 0), 7, type(loose)(loose.actions, loose.seen, loose.seen + 1, "feasible", 0.0),

@@ -129,13 +129,13 @@ class CoverageSearch:
 
     def ask(self, budget: int, need: int) -> SearchAnswer:
         """Is there a mission of ``budget`` units from the start that sees ``need`` targets?"""
+        if budget >= FAR:  # the key-target table's costs are bytes
+            raise ValueError(f"the search takes budgets of at most {FAR - 1} units, got {budget}")
         began = time.perf_counter()
         if need > self.targets.size:
             return SearchAnswer("none", np.zeros(0, np.int64), 0, 0, 0.0)
-        table = self.missing(self.targets.size - need)
-        reach = self._reach(budget)
-        size = 1 << self.options.transposition_bits
-        state = _SearchState(self.views.shape[1], budget, size)
+        table, reach = self.missing(self.targets.size - need), self._reach(budget)
+        state = _SearchState(self.views.shape[1], budget, 1 << self.options.transposition_bits)
         deadline = began + self.options.time_limit_s
         while True:
             done = _search(
@@ -145,8 +145,7 @@ class CoverageSearch:
             )  # fmt: skip
             if done != 0 or time.perf_counter() > deadline:
                 break
-        elapsed = time.perf_counter() - began
-        nodes = int(state.counters[1])
+        elapsed, nodes = time.perf_counter() - began, int(state.counters[1])
         if done == 1:
             depth = int(state.counters[0])
             actions = np.r_[state.taken[:depth], LAND].astype(np.int64)
