@@ -38,10 +38,11 @@ def check_map(name: str, step: int, time_limit: float) -> dict:
         by_solver = "tightened_from" not in e and not e["solver"].startswith("key-target")
         if e["status"] == "optimal" and by_solver:
             by_start.setdefault((row, col), []).append((budget, e["seen"]))
-    agreed, unknown, disagreed, slowest = 0, 0, [], 0.0
+    agreed, unknown, disagreed, slowest, keys = 0, 0, [], 0.0, 0
     options = SearchOptions(time_limit_s=time_limit)
     for (row, col), episodes in sorted(by_start.items()):
         search = CoverageSearch(g, row * grid_map.shape[1] + col, options)
+        keys = int(search.keys.size)
         for budget, seen in sorted(episodes)[::step]:
             found = search.ask(budget, seen)
             more = search.ask(budget, seen + 1) if seen < targets else None
@@ -62,7 +63,7 @@ def check_map(name: str, step: int, time_limit: float) -> dict:
         "unknown": unknown,
         "disagreed": disagreed,
         "slowest_s": round(slowest, 2),
-        "key_targets": int(search.keys.size),
+        "key_targets": keys,
     }
 
 

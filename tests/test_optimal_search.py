@@ -92,6 +92,8 @@ def test_close_gaps_proves_an_open_episode_and_leaves_it_open_without_time():
     [entry] = close_gaps(grid_map, starts, budgets, SearchOptions(key_targets=6), cache)
     assert entry["status"] == "optimal" and entry["bound"] == entry["seen"] == mission.seen
     assert entry["solver"].startswith("key-target search")
+    with pytest.raises(ValueError, match="not in the optimum cache"):  # never solved: say so
+        close_gaps(grid_map, np.array([[0, 1]]), np.array([7]), SearchOptions(), cache)
 
 
 def test_a_question_out_of_time_is_unknown(monkeypatch):

@@ -139,24 +139,31 @@ def close_gaps(
     options: SearchOptions,
     cache: OptimumCache,
     progress: bool = False,
-    fov_side: int = 3,
 ) -> list[dict]:
     """Close the open episodes among these with the exact search (:mod:`.optimal_search`): each
     is asked whether a mission sees its bound's count — a mission found is optimal, a proof that
     none exists lowers the bound by one — until the two meet or a question runs out of time.
+    The episodes must be in the cache (solved first); the search sees with the cache's view.
 
     The largest budgets go first: the cache's :func:`tighten` carries a bound to every smaller
     budget and to the nearby starts, so one proof often closes many episodes."""
-    g = build_graph(grid_map, fov_side)
-    width = grid_map.shape[1]
     keys = sorted(
         {(int(b), int(s[0]), int(s[1])) for s, b in zip(starts, budgets, strict=True)},
         reverse=True,
     )
+    unsolved = [(r, c, b) for b, r, c in keys if cache.get((r, c), b) is None]
+    if unsolved:
+        raise ValueError(
+            f"{len(unsolved)} of these episodes are not in the optimum cache (e.g. start "
+            f"{unsolved[0][:2]}, {unsolved[0][2]} units): solve them first (`cpp-mujoco optimum` "
+            "without --close-gaps)"
+        )
+    g = build_graph(grid_map, cache.fov_side)
+    width = grid_map.shape[1]
     searches: dict[tuple[int, int], CoverageSearch] = {}
     for budget, row, col in tqdm(keys, desc=f"gaps {grid_map.label}", disable=not progress):
         entry = cache.get((row, col), budget)
-        while entry is not None and entry["status"] == "feasible":
+        while entry["status"] == "feasible":
             search = searches.get((row, col))
             if search is None:
                 search = searches[(row, col)] = CoverageSearch(g, row * width + col, options)

@@ -83,9 +83,9 @@ class CoverageSearch:
             )
         k = min(options.key_targets, self.targets.size, int(np.log2(options.table_bytes // n)))
         self.keys = self._choose_keys(max(k, 0))
-        key_bit = np.zeros(n, dtype=np.int64)  # cells -> bit of the key target, if one
-        key_bit[self.keys] = 1 << np.arange(self.keys.size, dtype=np.int64)
-        self.key_views = _key_views(g.fov_cells, g.fov_valid & g.fov_targets, key_bit)
+        t = index[self.keys]  # the key targets' bits, gathered from the views into k bits
+        shown = (self.views[:, t >> 6] >> (t & 63).astype(np.uint64)) & np.uint64(1)
+        self.key_views = shown.astype(np.int64) @ (1 << np.arange(t.size, dtype=np.int64))
         home = np.minimum(g.home, FAR).astype(np.int64)
         self.moves = g.safety.next_cell[:, :LAND].astype(np.int64)
         costs = _cover_costs(self.key_views, self.moves, g.safety.accepted, home, self.keys.size)
@@ -180,17 +180,6 @@ class _SearchState:
             np.zeros(size, dtype=np.int64),  # units spent when remembered
             self.counters,
         )
-
-
-@njit(cache=True)
-def _key_views(fov_cells, fov_targets, key_bit):
-    """(H·W,) int64: the key targets (bits) each cell's view shows."""
-    out = np.zeros(fov_cells.shape[0], np.int64)
-    for p in range(fov_cells.shape[0]):
-        for j in range(fov_cells.shape[1]):
-            if fov_targets[p, j]:
-                out[p] |= key_bit[fov_cells[p, j]]
-    return out
 
 
 @njit(cache=True)
