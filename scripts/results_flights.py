@@ -10,6 +10,8 @@
     python scripts/results_flights.py network-alone --map-set heldout16-v1
                                                       # results/network_alone_*.json
     python scripts/results_flights.py network-alone --map-set city32-v1 --agent general-city
+    python scripts/results_flights.py symmetric-q --map-set scatter16-v1
+                                                      # results/symmetric_q_*.json
     python scripts/results_flights.py energy                      # results/action_energy.json
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
     python scripts/results_flights.py calibration                 # results/calibration.json
@@ -72,6 +74,13 @@ def network_alone(name: str, agent: str) -> None:
     """The general agent's network with the return rule only (no revisit or finish mask) on a
     map set, the whole protocol on the grid: results/network_alone_<NAME>.json."""
     _evaluate_set(name, ["--agent", agent, "--rule", "return-mask"], f"network_alone_{name}.json")
+
+
+def symmetric_q(name: str, agent: str) -> None:
+    """The general agent with its rules and the symmetric-Q rule added on a map set, the whole
+    protocol on the grid: results/symmetric_q_<NAME>.json."""
+    args = ["--agent", agent, "--rule", "+symmetric-q"]
+    _evaluate_set(name, args, f"symmetric_q_{name}.json")
 
 
 def _evaluate_set(name: str, args: list[str], result: str) -> None:
@@ -186,14 +195,15 @@ def main(argv=None) -> int:
     p.add_argument(
         "family",
         choices=[
-            "planners", "transfer", "map-set", "network-alone", "energy", "wind-agents",
-            "calibration",
+            "planners", "transfer", "map-set", "network-alone", "symmetric-q", "energy",
+            "wind-agents", "calibration",
         ],
     )  # fmt: skip
     p.add_argument("--map-set", default="heldout16-v1", help="map-set: which set")
     p.add_argument(
         "--agent", default="general",
-        help="map-set, network-alone: the general agent flown (general-city on the city sets)",
+        help="map-set, network-alone, symmetric-q: the general agent flown (general-city on the "
+        "city sets)",
     )  # fmt: skip
     p.add_argument("--no-agent", action="store_true", help="map-set: the planners only")
     p.add_argument("--workers", type=int, default=2, help="transfer: MuJoCo worker processes")
@@ -209,6 +219,8 @@ def main(argv=None) -> int:
         map_set(args.map_set, None if args.no_agent else args.agent)
     elif args.family == "network-alone":
         network_alone(args.map_set, args.agent)
+    elif args.family == "symmetric-q":
+        symmetric_q(args.map_set, args.agent)
     elif args.family == "wind-agents":
         wind_agents()
     elif args.family == "calibration":

@@ -7,7 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from cpp_mujoco.review.truth_table import bundled_row, network_row, truth_table
+from cpp_mujoco.review.truth_table import (
+    bundled_row,
+    network_row,
+    symmetric_q_row,
+    symmetric_q_table,
+    truth_table,
+)
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 
@@ -75,3 +81,38 @@ def test_the_committed_network_alone_file_fits_its_set():
     assert network["conditions"]["policy"]["finish_mask"] is False
     (line,) = truth_table([(data, network, None)]).splitlines()[2:]
     assert f"| {row['mean_coverage_ratio']:.2%} · {row['mean_landing_ratio']:.2%} |" in line
+
+
+def as_symmetric_q(data: dict) -> dict:
+    """A symmetric-Q file made from a set file: its agent row relabelled, the planners gone."""
+    out = copy.deepcopy(data)
+    (row,) = [r for r in out["policies"] if r["policy"] == "ddqn[general]"]
+    row["policy"] = "ddqn[general, rules: return-mask+revisit-mask+finish-mask+symmetric-q]"
+    row["mean_coverage_ratio"] = 0.9
+    out["policies"] = [row]
+    return out
+
+
+def test_symmetric_q_rows_sit_beside_the_bundled_policy_and_the_planners():
+    data = load("map_set_heldout16-v1.json")
+    (row,) = symmetric_q_table([(data, as_symmetric_q(data))]).splitlines()[2:]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    by_name = {r["policy"]: r for r in data["policies"]}
+    assert cells[0] == "heldout16-v1" and cells[3] == "90.00% · 100.00%"
+    assert cells[2] == f"{bundled_row(data)['mean_coverage_ratio']:.2%} · 100.00%"
+    assert cells[4] == f"{by_name['safe-greedy']['mean_coverage_ratio']:.2%} · 100.00%"
+    assert cells[5] == f"{by_name['beam-search']['mean_coverage_ratio']:.2%} · 100.00%"
+
+
+def test_symmetric_q_files_of_another_protocol_or_without_the_rule_are_refused():
+    data = load("map_set_heldout16-v1.json")
+    other = as_symmetric_q(data)
+    other["conditions"]["budgets"]["step"] = 5
+    with pytest.raises(ValueError, match="symmetric-Q file flew another protocol"):
+        symmetric_q_table([(data, other)])
+    with pytest.raises(ValueError, match="one symmetric-q agent row"):
+        symmetric_q_row(as_network_alone(data))
+    shorter = as_symmetric_q(data)
+    shorter["policies"][0]["episodes"] -= 1
+    with pytest.raises(ValueError, match="no bundled row of the same episodes"):
+        symmetric_q_table([(data, shorter)])

@@ -69,16 +69,16 @@ def _sample_gaps(optimum: dict | None) -> tuple[str, str]:
     return f"+{best:.2f} pt ({proven}/{n} proven)", f"+{bound:.2f} pt"
 
 
-def _same_protocol(data: dict, other: dict) -> None:
+def _same_protocol(data: dict, other: dict, what: str = "network-alone") -> None:
     """Two full-protocol files of one set: same set version and maps, same conditions (but the
-    policy, which a file of one policy names among them)."""
+    policy, which a file of one policy names among them); ``what`` names the other file."""
     keys = ("name", "version", "count", "evaluated", "first_seed")
     same_set = [data["map_set"][k] for k in keys] == [other["map_set"][k] for k in keys]
     ours, theirs = (
         {k: v for k, v in d["conditions"].items() if k != "policy"} for d in (data, other)
     )
     if not same_set or ours != theirs:
-        raise ValueError(f"{data['map_set']['name']}: the network-alone file flew another protocol")
+        raise ValueError(f"{data['map_set']['name']}: the {what} file flew another protocol")
 
 
 def _same_maps(data: dict, optimum: dict) -> None:
@@ -123,8 +123,10 @@ def truth_table(entries: list[tuple[dict, dict | None, dict | None]]) -> str:
 
 def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
     """The held-out sets' page from ``(file name, map_set file, network-alone file or None,
-    optimum sample or None)`` per set: the truth table, then each set's policies."""
-    table = truth_table([(data, network, optimum) for _, data, network, optimum in entries])
+    optimum sample or None, symmetric-Q file or None)`` per set: the truth table, the general
+    agent with symmetric Q where flown, then each set's policies."""
+    table = truth_table([(data, network, optimum) for _, data, network, optimum, _ in entries])
+    symmetric = [(data, variant) for _, data, _, _, variant in entries if variant is not None]
     parts = [
         generated,
         "# Results: held-out map sets",
@@ -139,7 +141,16 @@ def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
         "",
         TRUTH_TEXT,
     ]
-    for file_name, data, _, _ in entries:
+    if symmetric:
+        parts += [
+            "",
+            "## The general agent with symmetric Q",
+            "",
+            symmetric_q_table(symmetric),
+            "",
+            SYMMETRIC_Q_TEXT,
+        ]
+    for file_name, data, *_ in entries:
         spec = data["map_set"]
         agent = _agent_name(bundled_row(data))
         option = {None: " --no-agent", "general": ""}.get(agent, f" --agent {agent}")
@@ -164,3 +175,42 @@ def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
             f"`{command} --map-set {spec['name']}{option}` (`cpp-mujoco evaluate --map-set`).",
         ]
     return "\n".join(parts) + "\n"
+
+
+SYMMETRIC_Q_TEXT = (
+    "The bundled general agent with the symmetric-Q rule added (`--rule +symmetric-q`: the argmax "
+    "of its Q-values averaged over the map's 8 rotations and mirror images, 8 network readings "
+    "a step; `python scripts/results_flights.py symmetric-q --map-set SET`, "
+    "results/symmetric_q_SET.json), beside the same set's bundled policy and planners; the sets "
+    "flown so far. On the paper's maps A, B and C, which it learned in their own orientation, the "
+    "rule costs coverage, so the bundled general agent does not act with it."
+)
+
+
+def symmetric_q_row(data: dict) -> dict:
+    """The symmetric-Q file's one agent row (``ddqn[NAME, rules: …+symmetric-q]``)."""
+    rows = [r for r in data["policies"] if r["policy"].endswith("+symmetric-q]")]
+    if len(rows) != 1:
+        names = [r["policy"] for r in data["policies"]]
+        raise ValueError(f"a symmetric-Q result holds one symmetric-q agent row, not {names}")
+    return rows[0]
+
+
+def symmetric_q_table(entries: list[tuple[dict, dict]]) -> str:
+    """One row per set from ``(map_set file, symmetric-Q file)``: coverage · landing of the
+    bundled policy, the same agent with symmetric Q, and the planners, over the full protocol."""
+    lines = [
+        "| set | episodes | bundled policy | + symmetric Q | safe greedy | beam search |",
+        "|---|---|---|---|---|---|",
+    ]
+    for data, variant in entries:
+        _same_protocol(data, variant, "symmetric-Q")
+        row, bundled = symmetric_q_row(variant), bundled_row(data)
+        if bundled is None or row["episodes"] != bundled["episodes"]:
+            raise ValueError(f"{data['map_set']['name']}: no bundled row of the same episodes")
+        by_name = {r["policy"]: r for r in data["policies"]}
+        lines.append(
+            f"| {data['map_set']['name']} | {row['episodes']} | {_cell(bundled)} | {_cell(row)} | "
+            f"{_cell(by_name.get(PLANNERS[0]))} | {_cell(by_name.get(PLANNERS[1]))} |"
+        )
+    return "\n".join(lines)
