@@ -123,8 +123,24 @@ def test_a_non_square_map_reads_the_four_images_that_keep_its_shape():
     )
     readings = []
     obs = _observations(wide, 2)
-    symmetric_q_values(lambda o: readings.append(o["coverage"].shape) or np.zeros((2, 5)), obs)
-    assert readings == [(2, 12, 20)] * 4
+    symmetric_q_values(lambda o: readings.append(o["coverage"].shape) or np.zeros((8, 5)), obs)
+    assert readings == [(4 * 2, 12, 20)]  # the four images stacked, read at once
+
+
+def test_the_stacked_images_are_each_image_and_an_agent_reads_its_active_rows_of_each():
+    """One forward pass over the eight images gives what eight passes gave, and an agent whose
+    batch has finished rows reads only the active ones of every image."""
+    torch.manual_seed(0)
+    network = GeneralQNetwork(home_input=True, target_input=True)
+    agent = GreedyAgent(network, 75.0, rules=[SymmetricQ()])
+    obs = _observations(load_map("C"), 6)
+    each = sum(
+        agent.q_values(turn_observation(obs, s))[:, action_permutation(s)] for s in SYMMETRIES
+    ) / len(SYMMETRIES)
+    np.testing.assert_allclose(symmetric_q_values(agent.q_values, obs), each, atol=1e-6)
+    active = np.array([True, False, True, True, False, True])
+    some = agent.act_active(obs, active)
+    np.testing.assert_array_equal(some[active], each.argmax(axis=1)[active])
 
 
 def test_map_images_are_the_distinct_ones():

@@ -182,9 +182,18 @@ class GreedyAgent:
         if not self.rules:
             return torch.from_numpy(self.q_values(obs, rows)).argmax(dim=1).numpy()
         n = int(np.shape(obs["coverage"])[0])
+
+        def read(o: dict[str, np.ndarray]) -> np.ndarray:
+            """Q-values of the batch, or of k stacked copies of it (symmetric Q's images): the
+            active rows of each copy."""
+            if rows is None:
+                return self.q_values(o)
+            copies = int(np.shape(o["coverage"])[0]) // n
+            return self.q_values(o, (rows + n * np.arange(copies)[:, None]).ravel())
+
         allowed = floor = np.ones((n, NUM_ACTIONS), dtype=bool)
         for rule in self.rules:
-            allowed = rule.allowed(obs, allowed, floor, lambda o: self.q_values(o, rows))
+            allowed = rule.allowed(obs, allowed, floor, read)
             if rule.hard:
                 floor = allowed
         live = allowed if rows is None else allowed[rows]

@@ -48,13 +48,36 @@ def turn_observation(obs: dict[str, np.ndarray], symmetry: Symmetry) -> dict[str
     return out
 
 
+# a map shared by the batch: (3, H, W), and its obstacle layer (H, W)
+_SHARED_DIMS = {"map": 3, "obstacle": 2}
+
+
+def stacked_images(obs: dict[str, np.ndarray], group: list[Symmetry]) -> dict[str, np.ndarray]:
+    """The batch's observation on every image of ``group``, stacked: (len(group) · N, …), image
+    by image (a map shared by the batch is repeated for each row)."""
+    n = int(np.shape(obs["coverage"])[0])
+    images = [turn_observation(obs, symmetry) for symmetry in group]
+    out = {}
+    for key, value in obs.items():
+        shared = (key == "map" and np.ndim(value) == 3) or (
+            key == "obstacle" and np.ndim(value) == 2
+        )
+        parts = [np.asarray(image[key]) for image in images]
+        if shared:
+            parts = [np.broadcast_to(part, (n, *part.shape)) for part in parts]
+        out[key] = np.concatenate(parts)
+    return out
+
+
 def symmetric_q_values(q_values, obs: dict[str, np.ndarray]) -> np.ndarray:
-    """The mean over the map's symmetries of ``q_values`` (a batch of observations → (N, 5))
-    read on each image, each image's actions mapped back to the map's."""
-    shape = tuple(np.shape(obs["coverage"])[-2:])
-    group = symmetries_of(shape)
-    total = None
-    for symmetry in group:
-        q = np.asarray(q_values(turn_observation(obs, symmetry)))[:, PERMUTATIONS[symmetry]]
-        total = q if total is None else total + q
+    """The mean over the map's symmetries of ``q_values`` read on each image, each image's
+    actions mapped back to the map's. ``q_values`` reads a batch of observations → (M, 5); it is
+    called once, on the images stacked (:func:`stacked_images`: M = 8 N for a square map), so one
+    UAV's eight readings are one forward pass."""
+    n = int(np.shape(obs["coverage"])[0])
+    group = symmetries_of(tuple(np.shape(obs["coverage"])[-2:]))
+    q = np.asarray(q_values(stacked_images(obs, group))).reshape(len(group), n, -1)
+    total = q[0][:, PERMUTATIONS[group[0]]]
+    for image, symmetry in zip(q[1:], group[1:], strict=True):
+        total = total + image[:, PERMUTATIONS[symmetry]]
     return total / len(group)
