@@ -24,7 +24,8 @@ at the observed wind), guided by ``safe-greedy-wind`` and taught by ``beam-searc
 ``--city`` adds ``OUT/stage5-city`` after stage 4: its ``best.pt`` fine-tuned on city maps
 (buildings that hide targets, the obstacle layer as an input at zero weight to start, 8,192 city
 maps per size) at 1e-4 for 12,000 updates; its ``best.pt`` (chosen on the city validation maps)
-is ``general-city`` (``--install`` copies it to ``general-city.pt``).
+is ``general-city`` (``--install`` copies it to ``general-city.pt`` with the symmetric-Q rule
+added to its rules, :data:`INSTALL_RULES`).
 Run again, the script resumes a stage whose folder holds a ``checkpoint.pt`` and skips a
 finished one (docs/agent.md, "The general agent").
 """
@@ -45,11 +46,17 @@ from cpp_mujoco.agent import (
     GENERAL_WIND_AGENT,
     load_agent,
 )
+from cpp_mujoco.agent.checkpoint import atomic_save, load_checkpoint
 from cpp_mujoco.agent.general_eval import validate
 from cpp_mujoco.agent.map_pool import VALIDATION_SEEDS, MapPool
+from cpp_mujoco.agent.rules import RULE_FLAGS, check_rule_names, rule_names_of
 from cpp_mujoco.cli.main import main as cli_main
 from cpp_mujoco.grid.wind import GridWind  # the `cpp-mujoco` command itself
-from cpp_mujoco.util.io import atomic_write_bytes, atomic_write_text
+from cpp_mujoco.util.io import atomic_write_text
+
+# rules the installed file acts with beside its stage's own: the city agent takes the argmax of
+# its Q-values averaged over the map's 8 rotations and mirror images (city32-v1: docs/agent.md)
+INSTALL_RULES = {GENERAL_CITY_AGENT: ("symmetric-q",)}
 
 BASE_STAGES = [  # (folder, train-general options): stages 1-3, which the calm and wind agents share
     ("stage1", [
@@ -168,8 +175,17 @@ def main(argv=None) -> int:
         name = (
             GENERAL_WIND_AGENT if args.wind else GENERAL_CITY_AGENT if args.city else GENERAL_AGENT
         )
-        atomic_write_bytes(BUNDLED_DIR / f"{name}.pt", kept.read_bytes())
+        install(kept, BUNDLED_DIR / f"{name}.pt", INSTALL_RULES.get(name, ()))
     return 0
+
+
+def install(agent_file: Path, target: Path, extra_rules: tuple[str, ...] = ()) -> None:
+    """Write the agent file ``agent_file`` to ``target`` acting also with ``extra_rules`` (its
+    ``rules`` list and its config's rule flags both say so)."""
+    obj = load_checkpoint(agent_file)
+    names = check_rule_names([*rule_names_of(obj), *extra_rules])
+    flags = {flag: rule in names for flag, rule in RULE_FLAGS.items()}
+    atomic_save({**obj, "rules": names, "config": {**obj["config"], **flags}}, target)
 
 
 if __name__ == "__main__":

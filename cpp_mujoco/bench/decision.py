@@ -3,9 +3,9 @@ thread), per policy and map size — what a computer on board has to afford (the
 section of ``cpp-mujoco benchmark``).
 
 Each policy flies whole single-UAV episodes on the first map of heldout16-v1 and heldout32-v1
-(budgets spread over the size class); every ``act`` call is timed. The mean is the cost per
-action; the maximum is the slowest single decision (beam search plans its whole mission at the
-first action and then follows it)."""
+(the city agent: of city32-v1; budgets spread over the size class); every ``act`` call is
+timed. The mean is the cost per action; the maximum is the slowest single decision (beam search
+plans its whole mission at the first action and then follows it)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import time
 import numpy as np
 import torch
 
-from cpp_mujoco.agent import GENERAL_AGENT, load_agent
+from cpp_mujoco.agent import GENERAL_AGENT, GENERAL_CITY_AGENT, load_agent
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.map_sets.sets import load_map_set
 from cpp_mujoco.map_sets.size_classes import budget_range, size_config
@@ -39,9 +39,10 @@ class _Timed:
         return actions
 
 
-def decision_times(policy, size: int, episodes: int = 4) -> np.ndarray:
-    """Seconds of each decision over ``episodes`` single-UAV episodes on the set's first map."""
-    grid_map = load_map_set(f"heldout{size}-v1", first=1)[0]
+def decision_times(policy, size: int, episodes: int = 4, family: str = "heldout") -> np.ndarray:
+    """Seconds of each decision over ``episodes`` single-UAV episodes on the first map of the
+    family's set of that size (``heldout``: heldout16-v1, heldout32-v1; ``city``: city32-v1)."""
+    grid_map = load_map_set(f"{family}{size}-v1", first=1)[0]
     low, high = budget_range(size)
     timed = _Timed(policy)
     for k, budget in enumerate(np.linspace(low, high, episodes).round().astype(int)):
@@ -69,6 +70,10 @@ def run() -> dict:
                 seconds = decision_times(policy, size)
                 result[f"{name}_{size}x{size}_ms_mean"] = float(seconds.mean() * 1000)
                 result[f"{name}_{size}x{size}_ms_max"] = float(seconds.max() * 1000)
+        # the city agent with its rules (symmetric Q: eight readings of the network a step)
+        seconds = decision_times(load_agent(GENERAL_CITY_AGENT), 32, family="city")
+        result["general_city_32x32_ms_mean"] = float(seconds.mean() * 1000)
+        result["general_city_32x32_ms_max"] = float(seconds.max() * 1000)
         return result
     finally:
         torch.set_num_threads(threads)
