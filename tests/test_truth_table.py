@@ -22,14 +22,20 @@ def load(name: str) -> dict:
     return json.loads((RESULTS / name).read_text(encoding="utf-8"))
 
 
-def as_network_alone(data: dict) -> dict:
-    """A network-alone file made from a set file: its agent row relabelled, the planners gone."""
+def as_agent_file(data: dict, rules: str, coverage: float) -> dict:
+    """A one-agent file made from a set file: its agent row relabelled as flown with ``rules``
+    at ``coverage``, the planners gone."""
     out = copy.deepcopy(data)
     (row,) = [r for r in out["policies"] if r["policy"] == "ddqn[general]"]
-    row["policy"] = "ddqn[general, rules: return-mask]"
-    row["mean_coverage_ratio"] = 0.5
+    row["policy"] = f"ddqn[general, rules: {rules}]"
+    row["mean_coverage_ratio"] = coverage
     out["policies"] = [row]
     return out
+
+
+def as_network_alone(data: dict) -> dict:
+    """A network-alone file made from a set file."""
+    return as_agent_file(data, "return-mask", 0.5)
 
 
 def test_row_holds_each_column_and_the_sample_gaps():
@@ -84,13 +90,8 @@ def test_the_committed_network_alone_file_fits_its_set():
 
 
 def as_symmetric_q(data: dict) -> dict:
-    """A symmetric-Q file made from a set file: its agent row relabelled, the planners gone."""
-    out = copy.deepcopy(data)
-    (row,) = [r for r in out["policies"] if r["policy"] == "ddqn[general]"]
-    row["policy"] = "ddqn[general, rules: return-mask+revisit-mask+finish-mask+symmetric-q]"
-    row["mean_coverage_ratio"] = 0.9
-    out["policies"] = [row]
-    return out
+    """A symmetric-Q file made from a set file."""
+    return as_agent_file(data, "return-mask+revisit-mask+finish-mask+symmetric-q", 0.9)
 
 
 def test_symmetric_q_rows_sit_beside_the_bundled_policy_and_the_planners():
