@@ -59,11 +59,8 @@ def stacked_images(obs: dict[str, np.ndarray], group: list[Symmetry]) -> dict[st
     images = [turn_observation(obs, symmetry) for symmetry in group]
     out = {}
     for key, value in obs.items():
-        shared = (key == "map" and np.ndim(value) == 3) or (
-            key == "obstacle" and np.ndim(value) == 2
-        )
         parts = [np.asarray(image[key]) for image in images]
-        if shared:
+        if np.ndim(value) == _SHARED_DIMS.get(key):
             parts = [np.broadcast_to(part, (n, *part.shape)) for part in parts]
         out[key] = np.concatenate(parts)
     return out
