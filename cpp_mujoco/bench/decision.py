@@ -64,16 +64,16 @@ def run() -> dict:
             "safe_greedy": SafeGreedyPlanner(),
             "beam_search": BeamSearchPlanner(),
         }
-        result = {"torch_threads": 1}
-        for size in (16, 32):
-            for name, policy in policies.items():
-                seconds = decision_times(policy, size)
-                result[f"{name}_{size}x{size}_ms_mean"] = float(seconds.mean() * 1000)
-                result[f"{name}_{size}x{size}_ms_max"] = float(seconds.max() * 1000)
+        # (key, policy, size, the family of the map set it flies on)
+        runs = [(name, policy, size, "heldout") for size in (16, 32)
+                for name, policy in policies.items()]  # fmt: skip
         # the city agent with its rules (symmetric Q: eight readings of the network a step)
-        seconds = decision_times(load_agent(GENERAL_CITY_AGENT), 32, family="city")
-        result["general_city_32x32_ms_mean"] = float(seconds.mean() * 1000)
-        result["general_city_32x32_ms_max"] = float(seconds.max() * 1000)
+        runs.append(("general_city", load_agent(GENERAL_CITY_AGENT), 32, "city"))
+        result = {"torch_threads": 1}
+        for name, policy, size, family in runs:
+            seconds = decision_times(policy, size, family=family)
+            result[f"{name}_{size}x{size}_ms_mean"] = float(seconds.mean() * 1000)
+            result[f"{name}_{size}x{size}_ms_max"] = float(seconds.max() * 1000)
         return result
     finally:
         torch.set_num_threads(threads)

@@ -52,7 +52,9 @@ def turn_observation(obs: dict[str, np.ndarray], symmetry: Symmetry) -> dict[str
 _SHARED_DIMS = {"map": 3, "obstacle": 2}
 
 
-def stacked_images(obs: dict[str, np.ndarray], group: list[Symmetry]) -> dict[str, np.ndarray]:
+def stacked_images(
+    obs: dict[str, np.ndarray], group: tuple[Symmetry, ...]
+) -> dict[str, np.ndarray]:
     """The batch's observation on every image of ``group``, stacked: (len(group) · N, …), image
     by image (a map shared by the batch is repeated for each row)."""
     n = int(np.shape(obs["coverage"])[0])
