@@ -117,3 +117,9 @@ def test_symmetric_q_files_of_another_protocol_or_without_the_rule_are_refused()
     shorter["policies"][0]["episodes"] -= 1
     with pytest.raises(ValueError, match="no bundled row of the same episodes"):
         symmetric_q_table([(data, shorter)])
+    other_agent = as_symmetric_q(data)
+    other_agent["policies"][0]["policy"] = other_agent["policies"][0]["policy"].replace(
+        "general", "general-city"
+    )
+    with pytest.raises(ValueError, match="not the set's bundled agent"):
+        symmetric_q_table([(data, other_agent)])

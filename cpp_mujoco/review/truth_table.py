@@ -208,6 +208,11 @@ def symmetric_q_table(entries: list[tuple[dict, dict]]) -> str:
         row, bundled = symmetric_q_row(variant), bundled_row(data)
         if bundled is None or row["episodes"] != bundled["episodes"]:
             raise ValueError(f"{data['map_set']['name']}: no bundled row of the same episodes")
+        if not row["policy"].startswith(f"{bundled['policy'].removesuffix(']')}, rules:"):
+            raise ValueError(
+                f"{data['map_set']['name']}: the symmetric-Q file flew {row['policy']}, not the "
+                f"set's bundled agent {bundled['policy']}"
+            )
         by_name = {r["policy"]: r for r in data["policies"]}
         lines.append(
             f"| {data['map_set']['name']} | {row['episodes']} | {_cell(bundled)} | {_cell(row)} | "
