@@ -74,6 +74,14 @@ def test_files_of_another_protocol_or_other_maps_are_refused():
         truth_table([(data, shorter, None)])
 
 
+def test_a_network_alone_file_of_another_agent_is_refused():
+    data = load("map_set_heldout16-v1.json")
+    other = as_network_alone(data)
+    other["policies"][0]["policy"] = "ddqn[general-city, rules: return-mask]"
+    with pytest.raises(ValueError, match="not the set's bundled agent ddqn\\[general\\]"):
+        truth_table([(data, other, None)])
+
+
 def test_network_alone_file_must_hold_the_return_rule_row():
     data = load("map_set_heldout16-v1.json")
     with pytest.raises(ValueError, match="one return-mask agent row"):

@@ -81,6 +81,18 @@ def _same_protocol(data: dict, other: dict, what: str = "network-alone") -> None
         raise ValueError(f"{data['map_set']['name']}: the {what} file flew another protocol")
 
 
+def _same_agent(data: dict, row: dict, what: str) -> None:
+    """A one-agent file's row (``ddqn[NAME, rules: …]``) flew the set file's bundled agent."""
+    bundled = bundled_row(data)
+    if bundled is None or not row["policy"].startswith(
+        f"{bundled['policy'].removesuffix(']')}, rules:"
+    ):
+        raise ValueError(
+            f"{data['map_set']['name']}: the {what} file flew {row['policy']}, not the set's "
+            f"bundled agent {bundled and bundled['policy']}"
+        )
+
+
 def _same_maps(data: dict, optimum: dict) -> None:
     """An optimum sample drawn from the set's own maps (by digest)."""
     digests = {r["map_digest"] for r in data["rows"]}
@@ -105,6 +117,7 @@ def truth_table(entries: list[tuple[dict, dict | None, dict | None]]) -> str:
         episodes = {r["episodes"] for r in data["policies"]}
         if network is not None:
             _same_protocol(data, network)
+            _same_agent(data, network_row(network), "network-alone")
             episodes.add(network_row(network)["episodes"])
         if optimum is not None:
             _same_maps(data, optimum)
@@ -208,11 +221,7 @@ def symmetric_q_table(entries: list[tuple[dict, dict]]) -> str:
         row, bundled = symmetric_q_row(variant), bundled_row(data)
         if bundled is None or row["episodes"] != bundled["episodes"]:
             raise ValueError(f"{data['map_set']['name']}: no bundled row of the same episodes")
-        if not row["policy"].startswith(f"{bundled['policy'].removesuffix(']')}, rules:"):
-            raise ValueError(
-                f"{data['map_set']['name']}: the symmetric-Q file flew {row['policy']}, not the "
-                f"set's bundled agent {bundled['policy']}"
-            )
+        _same_agent(data, row, "symmetric-Q")
         by_name = {r["policy"]: r for r in data["policies"]}
         lines.append(
             f"| {data['map_set']['name']} | {row['episodes']} | {_cell(bundled)} | {_cell(row)} | "
