@@ -30,6 +30,7 @@ RULES = {
     "return-mask": "only the actions after which the way home is still paid",
     "revisit-mask": "no move back into a fruitless cell flown through since the coverage grew",
     "finish-mask": "no landing while an unseen target can still be reached and left for home",
+    "progress-mask": "while one is in reach, only moves one step nearer a cell showing a target",
     "symmetric-q": "the argmax of the Q-values averaged over the map's rotations and mirrors",
 }
 TRAIN_HELP = "train the DDQN agent on a map"

@@ -12,6 +12,7 @@ from typing import Any
 
 from cpp_mujoco.agent.rules.base import Rule
 from cpp_mujoco.agent.rules.finish_mask import FinishMask
+from cpp_mujoco.agent.rules.progress_mask import ProgressMask
 from cpp_mujoco.agent.rules.return_mask import ReturnMask
 from cpp_mujoco.agent.rules.revisit_mask import RevisitMask
 from cpp_mujoco.agent.rules.symmetric_q import SymmetricQ
@@ -22,15 +23,20 @@ RULES: dict[str, type] = {
     ReturnMask.name: ReturnMask,
     RevisitMask.name: RevisitMask,
     FinishMask.name: FinishMask,
+    ProgressMask.name: ProgressMask,
     SymmetricQ.name: SymmetricQ,
 }
-# the configs' booleans of the rules (agent files from before the rule list name them so)
+# the configs' booleans of the rules (agent files from before the rule list name them so; a
+# rule born after the list has none)
 RULE_FLAGS = {
     "return_mask": ReturnMask.name,
     "revisit_mask": RevisitMask.name,
     "finish_mask": FinishMask.name,
     "symmetric_q": SymmetricQ.name,
 }
+
+# the rules whose on/off every result records (the others only when on)
+_ALWAYS_RECORDED = {ReturnMask.name, RevisitMask.name, FinishMask.name}
 
 
 def check_rule_names(names: Iterable[str]) -> list[str]:
@@ -68,13 +74,14 @@ def rule_metadata(names: list[str]) -> dict[str, Any]:
 
 
 def rules_identity(rules: Iterable[Rule]) -> dict[str, Any]:
-    """What results record of an agent's rules: for every known rule whether it is on (symmetric
-    Q only when on, as results always had it), and each rule's own identity."""
+    """What results record of an agent's rules: for every rule with a config flag whether it is
+    on (symmetric Q only when on, as results always had it; a rule born after the list only when
+    on), and each rule's own identity."""
     by_name = {r.name: r for r in rules}
     out: dict[str, Any] = {}
     for name in RULES:
         rule = by_name.get(name)
-        if name != SymmetricQ.name:
+        if name in _ALWAYS_RECORDED:
             out[name.replace("-", "_")] = rule is not None
         if rule is not None:
             out.update(rule.identity())
@@ -85,6 +92,7 @@ __all__ = [
     "RULES",
     "RULE_FLAGS",
     "FinishMask",
+    "ProgressMask",
     "ReturnMask",
     "RevisitMask",
     "Rule",
