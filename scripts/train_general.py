@@ -24,8 +24,8 @@ at the observed wind), guided by ``safe-greedy-wind`` and taught by ``beam-searc
 ``--city`` adds ``OUT/stage5-city`` after stage 4: its ``best.pt`` fine-tuned on city maps
 (buildings that hide targets, the obstacle layer as an input at zero weight to start, 8,192 city
 maps per size) at 1e-4 for 12,000 updates; its ``best.pt`` (chosen on the city validation maps)
-is ``general-city`` (``--install`` copies it to ``general-city.pt`` with the symmetric-Q rule
-added to its rules, :data:`INSTALL_RULES`).
+is ``general-city`` (``--install`` copies it to ``general-city.pt`` with the progress mask and
+the symmetric-Q rule added to its rules, :data:`INSTALL_RULES`).
 Run again, the script resumes a stage whose folder holds a ``checkpoint.pt`` and skips a
 finished one (docs/agent.md, "The general agent").
 """
@@ -56,7 +56,7 @@ from cpp_mujoco.util.io import atomic_write_text
 
 # rules the installed file acts with beside its stage's own: the city agent takes the argmax of
 # its Q-values averaged over the map's 8 rotations and mirror images (city32-v1: docs/agent.md)
-INSTALL_RULES = {GENERAL_CITY_AGENT: ("symmetric-q",)}
+INSTALL_RULES = {GENERAL_CITY_AGENT: ("progress-mask", "symmetric-q")}
 
 BASE_STAGES = [  # (folder, train-general options): stages 1-3, which the calm and wind agents share
     ("stage1", [

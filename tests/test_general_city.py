@@ -33,7 +33,9 @@ def agent():
 def test_it_reads_obstacles_and_trained_on_city_maps_only(agent):
     assert GENERAL_CITY_AGENT in GENERAL_AGENTS and agent.metadata["bundled"]
     assert agent.name == "ddqn-general-city" and agent.reads_obstacles
-    assert agent.rule_names == ["return-mask", "revisit-mask", "finish-mask", "symmetric-q"]
+    assert agent.rule_names == [
+        "return-mask", "revisit-mask", "finish-mask", "progress-mask", "symmetric-q"
+    ]  # fmt: skip
     assert agent.metadata["config"]["map_family"] == "city"
     first, last = agent.metadata["train_maps"]["seeds"]
     assert TRAIN_SEEDS.start <= first <= last < TRAIN_SEEDS.stop
@@ -69,8 +71,8 @@ def test_it_is_what_the_training_script_makes(agent, script):
     folder, argv = script.stage_commands(Path("runs/general"), [], city=True)[-1]
     assert folder.name == "stage5-city"
     expected = config_from_args(build_parser().parse_args(argv)).to_dict()
-    # --install adds the symmetric-Q rule to the city agent's file
-    assert script.INSTALL_RULES[GENERAL_CITY_AGENT] == ("symmetric-q",)
+    # --install adds the progress mask and the symmetric-Q rule to the city agent's file
+    assert script.INSTALL_RULES[GENERAL_CITY_AGENT] == ("progress-mask", "symmetric-q")
     expected["symmetric_q"] = True
     stored = GeneralTrainConfig.from_dict(agent.metadata["config"]).to_dict()
     # the script starts from stage 4's best.pt, which is the bundled general agent
