@@ -22,13 +22,14 @@ DDQN target reads the Q-values); results name it (:data:`FINISH_RULE`, ``conditi
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any, ClassVar
 
 import numpy as np
 
 from cpp_mujoco.agent.rules.base import Observation, QValues, Stateless, map_groups
 from cpp_mujoco.grid.actions import LAND
-from cpp_mujoco.grid.graph import graph_from_observation
+from cpp_mujoco.grid.graph import MapGraph, graph_from_observation
 from cpp_mujoco.grid.mdp import GridConfig
 from cpp_mujoco.planners.rollout import decode_observation
 
@@ -41,19 +42,32 @@ FINISH_RULE = (
 _CHUNK_ELEMENTS = 1 << 21  # episodes × cells decided at once: bounds the (N, H·W) temporaries
 
 
+def goal_chunks(
+    obs: Observation, fov_side: int = GridConfig.fov_side, row_cells: int = 1
+) -> Iterator[tuple[MapGraph, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """(graph, rows, flat positions, dist, goal) for chunks of a batch, map by map
+    (:func:`~cpp_mujoco.agent.rules.base.map_groups`): each row's distances and returnable goals
+    (:meth:`~cpp_mujoco.grid.graph.MapGraph.returnable_goals`), the safe greedy planner's goals
+    that the finish and progress masks read. ``row_cells``: the H·W-sized temporaries a caller
+    keeps per row (chunks bound them)."""
+    pos, budget, coverage = decode_observation(obs)
+    for part, rows in map_groups(obs):
+        g = graph_from_observation(part, fov_side)
+        chunk = max(1, _CHUNK_ELEMENTS // (row_cells * g.num_cells))
+        for lo in range(0, rows.size, chunk):
+            r = rows[lo : lo + chunk]
+            _, dist, goal = g.returnable_goals(pos[r], budget[r], coverage[r])
+            yield g, r, pos[r], dist, goal
+
+
 def targets_in_reach(obs: dict[str, np.ndarray], fov_side: int = GridConfig.fov_side) -> np.ndarray:
     """(N,) bool for a batch of observations: some unseen target can still be seen and the way
     home paid after it — seen through the map's view, less what its obstacles hide where the
     observation has an ``obstacle`` layer. A batch whose rows carry their own maps
     ((N, 3, H, W)) is decided map by map (:func:`~cpp_mujoco.agent.rules.base.map_groups`)."""
-    pos, budget, coverage = decode_observation(obs)
-    out = np.zeros(pos.size, dtype=bool)
-    for part, rows in map_groups(obs):
-        g = graph_from_observation(part, fov_side)
-        chunk = max(1, _CHUNK_ELEMENTS // g.num_cells)
-        for lo in range(0, rows.size, chunk):
-            r = rows[lo : lo + chunk]
-            out[r] = g.returnable_goals(pos[r], budget[r], coverage[r])[2].any(axis=1)
+    out = np.zeros(np.shape(obs["position"])[0], dtype=bool)
+    for _, rows, _, _, goal in goal_chunks(obs, fov_side):
+        out[rows] = goal.any(axis=1)
     return out
 
 

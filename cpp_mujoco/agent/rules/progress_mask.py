@@ -30,11 +30,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from cpp_mujoco.agent.rules.base import Observation, QValues, Stateless, map_groups
+from cpp_mujoco.agent.rules.base import Observation, QValues, Stateless
+from cpp_mujoco.agent.rules.finish_mask import goal_chunks
 from cpp_mujoco.grid.actions import LAND
-from cpp_mujoco.grid.graph import graph_from_observation
 from cpp_mujoco.grid.mdp import GridConfig
-from cpp_mujoco.planners.rollout import decode_observation
 
 # what results record of the rule (policy_identity); a changed rule gets a new name here
 PROGRESS_RULE = (
@@ -42,24 +41,17 @@ PROGRESS_RULE = (
     "calm-air moves, only the moves one step nearer to some such cell; a row left with none "
     "takes those of the return rule's actions, else keeps its actions)"
 )
-_CHUNK_ELEMENTS = 1 << 21  # episodes × moves × cells decided at once: bounds the temporaries
 
 
 def progress_moves(obs: Observation, fov_side: int = GridConfig.fov_side) -> np.ndarray:
     """(N, 5) bool for a batch of observations: the moves that end one step nearer to some
     returnable goal (every action in a row without a goal; the landing always)."""
-    pos, budget, coverage = decode_observation(obs)
-    out = np.ones((pos.size, LAND + 1), dtype=bool)
-    for part, rows in map_groups(obs):
-        g = graph_from_observation(part, fov_side)
-        chunk = max(1, _CHUNK_ELEMENTS // (LAND * g.num_cells))
-        for lo in range(0, rows.size, chunk):
-            r = rows[lo : lo + chunk]
-            _, dist, goal = g.returnable_goals(pos[r], budget[r], coverage[r])
-            after = g.safety.next_cell[pos[r], :LAND]  # (k, 4): a rejected move stays put
-            dist_after = g.distance_from(after.ravel()).reshape(r.size, LAND, -1)
-            nearer = (goal[:, None, :] & (dist_after < dist[:, None, :])).any(axis=2)
-            out[r, :LAND] = np.where(goal.any(axis=1)[:, None], nearer, True)
+    out = np.ones((np.shape(obs["position"])[0], LAND + 1), dtype=bool)
+    for g, rows, pos, dist, goal in goal_chunks(obs, fov_side, row_cells=LAND):
+        after = g.safety.next_cell[pos, :LAND]  # (k, 4): a rejected move stays put
+        dist_after = g.distance_from(after.ravel()).reshape(rows.size, LAND, -1)
+        nearer = (goal[:, None, :] & (dist_after < dist[:, None, :])).any(axis=2)
+        out[rows, :LAND] = np.where(goal.any(axis=1)[:, None], nearer, True)
     return out
 
 
