@@ -8,7 +8,9 @@ from pathlib import Path
 import pytest
 
 from cpp_mujoco.review.truth_table import (
+    agent_policy,
     bundled_row,
+    map_set_page,
     network_row,
     symmetric_q_row,
     symmetric_q_table,
@@ -98,8 +100,11 @@ def test_the_committed_network_alone_file_fits_its_set():
 
 
 def as_symmetric_q(data: dict) -> dict:
-    """A symmetric-Q file made from a set file."""
-    return as_agent_file(data, "return-mask+revisit-mask+finish-mask+symmetric-q", 0.9)
+    """A symmetric-Q file made from a set file: its bundled agent's policy record with the rule."""
+    out = as_agent_file(data, "return-mask+revisit-mask+finish-mask+symmetric-q", 0.9)
+    policy = {**agent_policy(data), "source": "elsewhere/general.pt", "symmetric_q": "d4-mean-v1"}
+    out["conditions"]["policy"] = policy
+    return out
 
 
 def test_symmetric_q_rows_sit_beside_the_bundled_policy_and_the_planners():
@@ -131,3 +136,30 @@ def test_symmetric_q_files_of_another_protocol_or_without_the_rule_are_refused()
     )
     with pytest.raises(ValueError, match="not the set's bundled agent"):
         symmetric_q_table([(data, other_agent)])
+
+
+def test_a_symmetric_q_file_of_another_file_or_other_rules_is_refused_and_named():
+    data = load("map_set_heldout16-v1.json")
+    assert agent_policy(data)["digest"] and agent_policy(data)["finish_mask"] is True
+    for change in ({"digest": "0123456789ab"}, {"progress_rule": "progress-v1"}):
+        other = as_symmetric_q(data)
+        other["conditions"]["policy"].update(change)
+        with pytest.raises(ValueError, match="another file or other rules"):
+            symmetric_q_table([(data, other)])
+        entries = [("map_set_heldout16-v1.json", data, None, None, other)]
+        page = map_set_page(entries, "<!-- generated -->", "flights")
+        bundled = f"{bundled_row(data)['mean_coverage_ratio']:.2%} · 100.00% |"
+        assert bundled in page.split("## The general agent with symmetric Q")[0]  # truth table
+        assert "Not shown: heldout16-v1, whose symmetric-Q files" in page
+        assert "90.00%" not in page
+    entries = [("map_set_heldout16-v1.json", data, None, None, as_symmetric_q(data))]
+    page = map_set_page(entries, "<!-- generated -->", "flights")
+    assert "90.00% · 100.00%" in page and "Not shown" not in page
+
+
+def test_an_agent_flown_as_several_policies_in_one_set_file_is_refused():
+    data = copy.deepcopy(load("map_set_heldout16-v1.json"))
+    (row, *_) = [r for r in data["rows"] if r["policy"] == "ddqn[general]"]
+    row["conditions"]["policy"]["digest"] = "0123456789ab"
+    with pytest.raises(ValueError, match="flew as several policies"):
+        agent_policy(data)

@@ -7,6 +7,8 @@ are given as gaps to beam search on that sample, never as a coverage beside the 
 
 from __future__ import annotations
 
+import json
+
 from cpp_mujoco.review.doc_tables import budget_range_text
 
 PLANNERS = ("safe-greedy", "beam-search")
@@ -94,6 +96,34 @@ def _same_agent(data: dict, row: dict, what: str) -> None:
         )
 
 
+def agent_policy(data: dict) -> dict | None:
+    """What the set file's bundled agent rows record of the policy (``conditions.policy``: its
+    file's digest, network and every rule), one record for all its rows; None without one."""
+    bundled = bundled_row(data)
+    if bundled is None:
+        return None
+    records = {
+        json.dumps(r["conditions"]["policy"], sort_keys=True)
+        for r in data["rows"]
+        if r["policy"] == bundled["policy"]
+    }
+    if len(records) != 1:
+        raise ValueError(f"{data['map_set']['name']}: {bundled['policy']} flew as several policies")
+    return json.loads(records.pop())
+
+
+def symmetric_q_fits(data: dict, variant: dict) -> bool:
+    """The symmetric-Q file flew the set file's bundled agent itself — the same file (digest)
+    with the same rules — plus the symmetric-Q rule, nothing else."""
+    ours, theirs = agent_policy(data), variant["conditions"]["policy"]
+    if ours is None or "symmetric_q" not in theirs:
+        return False
+    where = ("source", "symmetric_q")  # the path it was read from: the digest names the file
+    return {k: v for k, v in ours.items() if k not in where} == {
+        k: v for k, v in theirs.items() if k not in where
+    }
+
+
 def _same_maps(data: dict, optimum: dict) -> None:
     """An optimum sample drawn from the set's own maps (by digest)."""
     digests = {r["map_digest"] for r in data["rows"]}
@@ -140,7 +170,9 @@ def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
     optimum sample or None, symmetric-Q file or None)`` per set: the truth table, the general
     agent with symmetric Q where flown, then each set's policies."""
     table = truth_table([(data, network, optimum) for _, data, network, optimum, _ in entries])
-    symmetric = [(data, variant) for _, data, _, _, variant in entries if variant is not None]
+    flown = [(data, variant) for _, data, _, _, variant in entries if variant is not None]
+    symmetric = [(data, variant) for data, variant in flown if symmetric_q_fits(data, variant)]
+    earlier = [data["map_set"]["name"] for data, v in flown if not symmetric_q_fits(data, v)]
     parts = [
         generated,
         "# Results: held-out map sets",
@@ -155,14 +187,16 @@ def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
         "",
         TRUTH_TEXT,
     ]
+    if flown:
+        parts += ["", "## The general agent with symmetric Q"]
     if symmetric:
+        parts += ["", symmetric_q_table(symmetric), "", SYMMETRIC_Q_TEXT]
+    if earlier:
         parts += [
             "",
-            "## The general agent with symmetric Q",
-            "",
-            symmetric_q_table(symmetric),
-            "",
-            SYMMETRIC_Q_TEXT,
+            f"Not shown: {', '.join(earlier)}, whose symmetric-Q files were flown with an earlier "
+            "file or rule set of the bundled agent (`python scripts/results_flights.py "
+            "symmetric-q --map-set SET` flies the present one).",
         ]
     for file_name, data, *_ in entries:
         spec = data["map_set"]
@@ -223,6 +257,11 @@ def symmetric_q_table(entries: list[tuple[dict, dict]]) -> str:
         if bundled is None or row["episodes"] != bundled["episodes"]:
             raise ValueError(f"{data['map_set']['name']}: no bundled row of the same episodes")
         _same_agent(data, row, "symmetric-Q")
+        if not symmetric_q_fits(data, variant):
+            raise ValueError(
+                f"{data['map_set']['name']}: the symmetric-Q file flew another file or other "
+                "rules than the bundled policy's, not just symmetric Q added"
+            )
         by_name = {r["policy"]: r for r in data["policies"]}
         lines.append(
             f"| {data['map_set']['name']} | {row['episodes']} | {_cell(bundled)} | {_cell(row)} | "
