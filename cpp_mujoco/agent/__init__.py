@@ -18,6 +18,7 @@ from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.network import QNetwork
 from cpp_mujoco.agent.policy import GreedyAgent, MapSizeError
 from cpp_mujoco.agent.rules import make_rules, rule_metadata, rule_names_of
+from cpp_mujoco.agent.rules.symmetric_q import own_orientation_maps
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.maps import bundled_maps, load_map
 from cpp_mujoco.util.io import resolve_named_file
@@ -62,22 +63,23 @@ def load_agent(name_or_path: str | os.PathLike, device: str = "cpu") -> GreedyAg
     except ValueError as e:
         raise CheckpointError(f"{where.path}: {e}") from None
     wind_margin = _wind_margin((obj.get("config") or {}).get("wind_planner_sigmas"), where.path)
+    metadata = {
+        **{k: obj.get(k) for k in ("map", "config", "metrics")},
+        "map_digest": _trained_digest(obj),
+        **{k: obj[k] for k in ("train_maps", "validation_maps") if k in obj},  # general
+        "architecture": obj.get("architecture", "paper"),
+        **rule_metadata(names),
+        "source": str(where.path),
+        "bundled": where.bundled,
+        "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
+    }
     return GreedyAgent(
         net,
         obj["budget_scale"],
         device,
         name=f"ddqn-{where.name}" if where.bundled else f"ddqn-{where.name} (file)",
-        metadata={
-            **{k: obj.get(k) for k in ("map", "config", "metrics")},
-            "map_digest": _trained_digest(obj),
-            **{k: obj[k] for k in ("train_maps", "validation_maps") if k in obj},  # general
-            "architecture": obj.get("architecture", "paper"),
-            **rule_metadata(names),
-            "source": str(where.path),
-            "bundled": where.bundled,
-            "digest": hashlib.sha256(where.path.read_bytes()).hexdigest()[:12],
-        },
-        rules=make_rules(names, wind_margin),
+        metadata=metadata,
+        rules=make_rules(names, wind_margin, own_orientation_maps(metadata)),
     )
 
 

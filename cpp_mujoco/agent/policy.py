@@ -19,7 +19,11 @@ from cpp_mujoco.agent.fcn_network import FCNQNetwork
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.network import QNetwork, observation_to_tensors
 from cpp_mujoco.agent.rules import ReturnMask, Rule, make_rules, rule_metadata, rules_identity
-from cpp_mujoco.agent.rules.symmetric_q import SymmetricQ
+from cpp_mujoco.agent.rules.symmetric_q import (
+    SymmetricQ,
+    SymmetricQUnseen,
+    own_orientation_maps,
+)
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.maps import GridMap
@@ -61,7 +65,7 @@ class GreedyAgent:
     def with_rules(self, names: Sequence[str]) -> GreedyAgent:
         """This agent's network flown with the rules ``names`` instead (the return mask keeps
         its margin); the file's metadata is kept, results name the new rules."""
-        rules = make_rules(names, self.wind_margin)
+        rules = make_rules(names, self.wind_margin, own_orientation_maps(self.metadata))
         metadata = {**self.metadata, **rule_metadata([r.name for r in rules])}
         return GreedyAgent(
             self.network, self.budget_scale, self.device, self.name, metadata, rules
@@ -129,7 +133,7 @@ class GreedyAgent:
 
     def fits(self, grid_map: GridMap) -> str | None:
         """Why this agent does not fit ``grid_map`` (None if it does): a per-map agent flies only
-        the map it was trained on (its file's ``map_digest``) — with the symmetric-Q rule also
+        the map it was trained on (its file's ``map_digest``) — with a symmetric-Q rule also
         that map turned or mirrored; a general agent flies any map.
         A network without an obstacle input fits no map with obstacles: it cannot tell what
         hides a target. The protocol refuses the misfit unless the user says so (``any_map``)."""
@@ -143,7 +147,8 @@ class GreedyAgent:
             return None
         if trained == grid_map.digest:
             return None
-        if self._has(SymmetricQ.name) and trained in {m.digest for m in map_images(grid_map)}:
+        symmetric = self._has(SymmetricQ.name) or self._has(SymmetricQUnseen.name)
+        if symmetric and trained in {m.digest for m in map_images(grid_map)}:
             return None  # it reads the map in its trained orientation too, among the 8 images
         return (
             f"agent {self.name} was trained on map {self.metadata.get('map')!r} (cells "

@@ -32,6 +32,7 @@ RULES = {
     "finish-mask": "no landing while an unseen target can still be reached and left for home",
     "progress-mask": "while one is in reach, only moves one step nearer a cell showing a target",
     "symmetric-q": "the argmax of the Q-values averaged over the map's rotations and mirrors",
+    "symmetric-q-unseen": "symmetric-q but on the maps the agent learned in their own orientation",
 }
 TRAIN_HELP = "train the DDQN agent on a map"
 TRAIN_GENERAL_HELP = "train one DDQN agent for any map on generated maps"

@@ -111,14 +111,8 @@ class GridMap:
 
     @cached_property
     def digest(self) -> str:
-        """The first 12 hex digits of the SHA-256 of the shape and the layers (the obstacle layer
-        only where the map has obstacles: a map without keeps its digest)."""
-        h = hashlib.sha256(repr(self.shape).encode())
-        h.update(np.packbits(self.layers).tobytes())
-        if self.has_obstacles:
-            h.update(b"obstacle")
-            h.update(np.packbits(self.obstacle).tobytes())
-        return h.hexdigest()[:12]
+        """:func:`layers_digest` of the map's layers and obstacles."""
+        return layers_digest(self.layers, self.obstacle)
 
     @cached_property
     def has_obstacles(self) -> bool:
@@ -232,3 +226,17 @@ def read_png(path: Path) -> np.ndarray:
         raise MapError(f"{path}: image too large ({e})") from e
     except Exception as e:  # noqa: BLE001 - whatever PIL raises on a bad file is bad input
         raise MapError(f"{path}: unreadable or truncated PNG ({type(e).__name__}: {e})") from e
+
+
+def layers_digest(layers: np.ndarray, obstacle: np.ndarray | None = None) -> str:
+    """A map's digest from its (3, H, W) layers in observation order and its (H, W) obstacle
+    layer: the first 12 hex digits of the SHA-256 of the shape and the layers (the obstacle
+    layer only where the map has obstacles: a map without keeps its digest). An observation's
+    ``map`` (any 0/1 dtype) gives its map's digest."""
+    layers = np.asarray(layers) != 0
+    h = hashlib.sha256(repr(tuple(layers.shape[-2:])).encode())
+    h.update(np.packbits(layers).tobytes())
+    if obstacle is not None and np.any(obstacle):
+        h.update(b"obstacle")
+        h.update(np.packbits(np.asarray(obstacle) != 0).tobytes())
+    return h.hexdigest()[:12]

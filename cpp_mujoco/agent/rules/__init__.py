@@ -15,7 +15,7 @@ from cpp_mujoco.agent.rules.finish_mask import FinishMask
 from cpp_mujoco.agent.rules.progress_mask import ProgressMask
 from cpp_mujoco.agent.rules.return_mask import ReturnMask
 from cpp_mujoco.agent.rules.revisit_mask import RevisitMask
-from cpp_mujoco.agent.rules.symmetric_q import SymmetricQ
+from cpp_mujoco.agent.rules.symmetric_q import SymmetricQ, SymmetricQUnseen
 from cpp_mujoco.grid.way_home import ReturnMargin
 
 # the rules by name, in the order an agent applies them (hard rules first, symmetric Q last)
@@ -25,7 +25,10 @@ RULES: dict[str, type] = {
     FinishMask.name: FinishMask,
     ProgressMask.name: ProgressMask,
     SymmetricQ.name: SymmetricQ,
+    SymmetricQUnseen.name: SymmetricQUnseen,
 }
+# rules of which an agent takes one at most (each picks the action itself, last)
+_EXCLUSIVE = ({SymmetricQ.name, SymmetricQUnseen.name},)
 # the configs' booleans of the rules (agent files from before the rule list name them so; a
 # rule born after the list has none)
 RULE_FLAGS = {
@@ -45,14 +48,23 @@ def check_rule_names(names: Iterable[str]) -> list[str]:
     unknown = sorted(set(names) - set(RULES))
     if unknown:
         raise ValueError(f"unknown rule {unknown[0]!r}; known: {', '.join(RULES)}")
+    for group in _EXCLUSIVE:
+        if len(group & set(names)) > 1:
+            raise ValueError(f"rules {' and '.join(sorted(group))} exclude each other; give one")
     return [n for n in RULES if n in names]
 
 
-def make_rules(names: Iterable[str], margin: ReturnMargin | None = None) -> list[Rule]:
-    """The rules of ``names`` (in :data:`RULES` order); ``margin``: the return mask's in wind."""
-    return [
-        ReturnMask(margin) if n == ReturnMask.name else RULES[n]() for n in check_rule_names(names)
-    ]
+def make_rules(
+    names: Iterable[str], margin: ReturnMargin | None = None, own_orientation: Iterable[str] = ()
+) -> list[Rule]:
+    """The rules of ``names`` (in :data:`RULES` order); ``margin``: the return mask's in wind;
+    ``own_orientation``: the digests of the maps the agent learned in their own orientation only
+    (:func:`~cpp_mujoco.agent.rules.symmetric_q.own_orientation_maps`)."""
+    made = {
+        ReturnMask.name: lambda: ReturnMask(margin),
+        SymmetricQUnseen.name: lambda: SymmetricQUnseen(own_orientation),
+    }
+    return [made.get(n, RULES[n])() for n in check_rule_names(names)]
 
 
 def rule_names_of(stored: Mapping[str, Any]) -> list[str]:
@@ -97,6 +109,7 @@ __all__ = [
     "RevisitMask",
     "Rule",
     "SymmetricQ",
+    "SymmetricQUnseen",
     "check_rule_names",
     "make_rules",
     "rule_metadata",
