@@ -3,7 +3,8 @@ allow, for one observation or a batch.
 
 An agent is a network plus an ordered list of rules (:mod:`~cpp_mujoco.agent.rules`): the
 return mask (agents trained with it act only among the actions that keep the way home paid),
-the revisit and finish masks, symmetric Q. The agent file stores the list; results name it.
+the revisit, finish and progress masks, symmetric Q (on every map, or on the maps it did not
+learn in their own orientation). The agent file stores the list; results name it.
 """
 
 from __future__ import annotations
