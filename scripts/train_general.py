@@ -56,7 +56,10 @@ from cpp_mujoco.util.io import atomic_write_text
 
 # rules the installed file acts with beside its stage's own: the city agent takes the argmax of
 # its Q-values averaged over the map's 8 rotations and mirror images (city32-v1: docs/agent.md)
-INSTALL_RULES = {GENERAL_CITY_AGENT: ("progress-mask", "symmetric-q")}
+INSTALL_RULES = {
+    GENERAL_AGENT: ("progress-mask",),
+    GENERAL_CITY_AGENT: ("progress-mask", "symmetric-q"),
+}
 
 BASE_STAGES = [  # (folder, train-general options): stages 1-3, which the calm and wind agents share
     ("stage1", [
