@@ -1,6 +1,7 @@
 """The policies against the optimum on maps A, B and C: the table of docs/optimum.md.
 
     python scripts/optimum_report.py --evaluate   # fly the policies, write results/optimum_abc.json
+    python scripts/optimum_report.py --evaluate --policy general   # re-fly that policy's rows only
     python scripts/optimum_report.py              # write the table from that file into the docs
     python scripts/optimum_report.py --check      # exit 1 if a doc's table is not the file's
 
@@ -36,29 +37,46 @@ def policies(name: str) -> list[tuple[str, object]]:
     ]
 
 
-def evaluate_all(workers: int, budget_step: int) -> dict:
+def evaluate_all(workers: int, budget_step: int, only: list[str] | None = None) -> dict:
+    """Fly every policy on A, B and C and the best missions in MuJoCo; with ``only`` (policy
+    labels), fly just those policies' grid rows and keep every other row of the committed file
+    in its place (a re-installed agent is re-flown without re-flying the rest)."""
     from cpp_mujoco.maps import load_map
     from cpp_mujoco.planners import make_planner
     from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
     from cpp_mujoco.protocol.optimum import default_folder
     from cpp_mujoco.util.io import atomic_write_text, json_default
 
+    kept = json.loads(RESULT.read_text()) if only else None
     rows, physics = [], []
     for name in MAPS:
         grid_map = load_map(name)
         for label, policy in policies(name):
+            if only and label not in only:
+                rows.append(_kept_row(kept, name, label))
+                continue
             result = evaluate(policy, grid_map, policy_name=label)
             if not result.optimum:
                 raise SystemExit(f"optimum_report.py: no optimum cached for map {name}")
             rows.append(result.summary())
+        if only:
+            continue
         # the best missions flown in MuJoCo, calm air, from the committed cache
         optimal = make_planner("optimal", optimal={"cache_folder": default_folder()})
         budgets = protocol_budgets(step=budget_step)
         flown = evaluate(optimal, grid_map, backend="mujoco", budgets=budgets, workers=workers)
         physics.append(flown.summary())
-    data = {"results": rows, "physics": physics}
+    data = {"results": rows, "physics": kept["physics"] if only else physics}
     atomic_write_text(RESULT, json.dumps(data, indent=1, default=json_default))
     return data
+
+
+def _kept_row(kept: dict, name: str, label: str) -> dict:
+    """The committed file's row of ``label`` on map ``name``."""
+    found = [r for r in kept["results"] if r["map"] == name and r["policy"] == label]
+    if len(found) != 1:
+        raise SystemExit(f"optimum_report.py: {RESULT.name} holds no single {label} row on {name}")
+    return found[0]
 
 
 def render(data: dict) -> str:
@@ -83,10 +101,20 @@ def main(argv=None) -> int:
     p.add_argument("--evaluate", action="store_true", help="fly the policies first")
     p.add_argument("--workers", type=int, default=2, help="MuJoCo worker processes")
     p.add_argument("--budget-step", type=int, default=10, help="MuJoCo: every n-th budget")
+    p.add_argument(
+        "--policy", nargs="+", metavar="LABEL",
+        help="with --evaluate: re-fly only these policies' rows (safe-greedy, beam-search, "
+        "ddqn-A/-B/-C, general), keeping the file's other rows and its MuJoCo flights",
+    )  # fmt: skip
     p.add_argument("--check", action="store_true", help="exit 1 if the doc's table drifted")
     args = p.parse_args(argv)
+    known = {"safe-greedy", "beam-search", "general", *(f"ddqn-{m}" for m in MAPS)}
+    if args.policy and not args.evaluate:
+        p.error("--policy goes with --evaluate")
+    if unknown := set(args.policy or ()) - known:
+        p.error(f"unknown policy {sorted(unknown)}; one of {sorted(known)}")
     if args.evaluate:
-        data = evaluate_all(args.workers, args.budget_step)
+        data = evaluate_all(args.workers, args.budget_step, args.policy)
     else:
         data = json.loads(RESULT.read_text())
     table = render(data)

@@ -332,3 +332,36 @@ def test_the_model_with_two_cells_of_memory_finds_what_every_action_sequence_fin
         best = best_by_every_sequence(grid_map, (row, col), budget)
         assert answer.status == "optimal" and landed
         assert seen == round(float(model.objective @ answer.x)) == best
+
+
+def test_the_report_re_flies_only_the_named_policies(tmp_path, monkeypatch):
+    import runpy
+    from types import SimpleNamespace
+
+    import cpp_mujoco.protocol.evaluate as protocol
+
+    script = runpy.run_path(str(Path(__file__).parent.parent / "scripts" / "optimum_report.py"))
+    committed = json.loads(script["RESULT"].read_text())
+    result = tmp_path / "optimum_abc.json"
+    result.write_text(json.dumps(committed))
+    script["evaluate_all"].__globals__["RESULT"] = result
+    flown = []
+
+    def fake_evaluate(policy, grid_map, policy_name, **kwargs):
+        flown.append((grid_map.name, policy_name))
+        row = {"map": grid_map.name, "policy": policy_name, "re-flown": True}
+        return SimpleNamespace(optimum=True, summary=lambda: row)
+
+    monkeypatch.setattr(protocol, "evaluate", fake_evaluate)
+    data = script["evaluate_all"](2, 10, ["general"])
+    assert flown == [("A", "general"), ("B", "general"), ("C", "general")]
+    assert data == json.loads(result.read_text())
+    assert data["physics"] == committed["physics"]
+    for row, before in zip(data["results"], committed["results"], strict=True):
+        assert (row["map"], row["policy"]) == (before["map"], before["policy"])
+        assert ("re-flown" in row) == (row["policy"] == "general")
+        if row["policy"] != "general":
+            assert row == before
+    for argv in (["--policy", "general"], ["--evaluate", "--policy", "ddqn-D"]):
+        with pytest.raises(SystemExit):
+            script["main"](argv)
