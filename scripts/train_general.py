@@ -15,7 +15,8 @@ learning rate. Stage 4 (``OUT/stage4``) starts from stage 3's ``best.pt`` with A
 of the episodes, their demonstrations at every budget of the protocol and 40 % of each
 demonstration minibatch drawn from them, at 1e-4, for 12,000 updates; its ``best.pt`` (chosen on
 the validation maps) is the agent. ``--install`` copies it to
-``cpp_mujoco/agent/bundled/general.pt`` (weights + metadata only).
+``cpp_mujoco/agent/bundled/general.pt`` (weights + metadata only) with the progress mask added to
+its rules (:data:`INSTALL_RULES`).
 ``--wind`` replaces stage 4 by ``OUT/stage4-wind``: stage 3's ``best.pt`` fine-tuned in the grid's
 wind option (0–12 m/s, 35 % calm, the wind inputs starting at zero weight, the return mask priced
 at the observed wind), guided by ``safe-greedy-wind`` and taught by ``beam-search-wind`` on the
@@ -54,9 +55,13 @@ from cpp_mujoco.cli.main import main as cli_main
 from cpp_mujoco.grid.wind import GridWind  # the `cpp-mujoco` command itself
 from cpp_mujoco.util.io import atomic_write_text
 
-# rules the installed file acts with beside its stage's own: the city agent takes the argmax of
-# its Q-values averaged over the map's 8 rotations and mirror images (city32-v1: docs/agent.md)
-INSTALL_RULES = {GENERAL_CITY_AGENT: ("progress-mask", "symmetric-q")}
+# rules the installed file acts with beside its stage's own: both take only moves nearer a target
+# while one is in reach; the city agent also the argmax of its Q-values averaged over the map's 8
+# rotations and mirror images (held-out sets and city32-v1: docs/agent.md)
+INSTALL_RULES = {
+    GENERAL_AGENT: ("progress-mask",),
+    GENERAL_CITY_AGENT: ("progress-mask", "symmetric-q"),
+}
 
 BASE_STAGES = [  # (folder, train-general options): stages 1-3, which the calm and wind agents share
     ("stage1", [

@@ -117,5 +117,5 @@ def test_configs_and_files_name_it(general):
     assert general.metadata["finish_mask"] and general.finish_mask
     assert not load_agent("A").finish_mask  # the paper's per-map agents fly without it
     label, _ = agent_entry("general", load_agent("general"), ["no-finish-mask"])
-    assert label == "ddqn[general, rules: return-mask+revisit-mask]"
+    assert label == "ddqn[general, rules: return-mask+revisit-mask+progress-mask]"
     assert agent_entry("general", load_agent("general"), ["+finish-mask"])[0] == "ddqn[general]"

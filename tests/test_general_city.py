@@ -7,7 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from cpp_mujoco.agent import BUNDLED_DIR, GENERAL_AGENTS, GENERAL_CITY_AGENT, load_agent
+from cpp_mujoco.agent import (
+    BUNDLED_DIR,
+    GENERAL_AGENT,
+    GENERAL_AGENTS,
+    GENERAL_CITY_AGENT,
+    load_agent,
+)
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.map_pool import TRAIN_SEEDS, VALIDATION_SEEDS
 from cpp_mujoco.agent.training_state import RESUMABLE_CHANGES
@@ -95,9 +101,12 @@ def test_install_adds_rules_and_refuses_unknown_ones(script, tmp_path):
     general = tmp_path / "general.pt"
     script.install(BUNDLED_DIR / "general.pt", general, ("symmetric-q",))
     installed = load_agent(general)
-    assert installed.rule_names == ["return-mask", "revisit-mask", "finish-mask", "symmetric-q"]
+    own = ["return-mask", "revisit-mask", "finish-mask", "progress-mask"]
+    assert installed.rule_names == [*own, "symmetric-q"]
     assert installed.metadata["config"]["symmetric_q"] is True
-    assert load_agent("general").rule_names == ["return-mask", "revisit-mask", "finish-mask"]
+    assert load_agent("general").rule_names == own
+    # --install adds the progress mask to the general agent's file
+    assert script.INSTALL_RULES[GENERAL_AGENT] == ("progress-mask",)
     with pytest.raises(ValueError, match="unknown rule 'look-ahead'"):
         script.install(source, tmp_path / "bad.pt", ("look-ahead",))
     assert not (tmp_path / "bad.pt").exists()

@@ -42,11 +42,10 @@ def test_files_from_before_the_list_read_their_booleans_as_the_same_list():
         "finish-mask",
     ]  # the list wins
     general = load_checkpoint(load_agent("general").metadata["source"])
-    assert "rules" not in general and load_agent("general").rule_names == [
-        "return-mask",
-        "revisit-mask",
-        "finish-mask",
-    ]
+    own = ["return-mask", "revisit-mask", "finish-mask"]
+    assert load_agent("general").rule_names == rule_names_of(general) == [*own, "progress-mask"]
+    # the file without its list: its config's booleans, the rules from before the list
+    assert rule_names_of({k: v for k, v in general.items() if k != "rules"}) == own
 
 
 def test_a_file_with_a_bad_rule_list_is_refused_with_its_name(tmp_path):
