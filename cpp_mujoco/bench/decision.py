@@ -59,7 +59,7 @@ def run() -> dict:
     try:
         agent = load_agent(GENERAL_AGENT)
         policies = {
-            "general": agent,  # with its rules: return, revisit and finish masks
+            "general": agent,  # with its rules: return, revisit, finish and progress masks
             "general_network_alone": agent.with_rules(["return-mask"]),
             "safe_greedy": SafeGreedyPlanner(),
             "beam_search": BeamSearchPlanner(),
