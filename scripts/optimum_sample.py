@@ -8,13 +8,16 @@
     python scripts/optimum_sample.py --map-set heldout16-v1 --close-gaps 60   # then the search
 
 Draws episodes uniformly over the set's protocol (a map, one of its landing cells, a budget of its
-size class; seeded), flies safe greedy, beam search and the general agent on them, solves each
+size class; seeded), flies safe greedy, beam search, the general agent and the general agent
+searching with its values (``general+value-beam``) on them, solves each
 into the optimum cache (results/optimum/) from the best of their missions (with
 ``--beam-width W`` also a beam of W paths, whose missions re-open the cached episodes where
 they see more than the cached best; with ``--close-gaps S`` the episodes still open then go to the
 exact search, S seconds per question: planners/optimal_search.py), and writes
 results/optimum_<set>.json: per policy its mean coverage, its mean gap to the best missions found
-with the gap's standard error, and how many of the best missions are proven, with the mean bound.
+with the gap's standard error, and what it was (its file's digest, its rules:
+``policy_identities``);
+how many of the best missions are proven, with the mean bound.
 The table in docs/optimum.md is written from that file (``--render``).
 """
 
@@ -30,7 +33,19 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "optimum.md"
-POLICIES = ("safe-greedy", "beam-search", "general")
+POLICIES = ("safe-greedy", "beam-search", "general", "general+value-beam")
+
+
+def make_policy(name: str):
+    """A policy of the table by its name: a planner, the general agent, or the general agent
+    searching with its values (:mod:`cpp_mujoco.agent.value_beam`)."""
+    from cpp_mujoco.agent import load_agent
+    from cpp_mujoco.agent.value_beam import ValueBeamAgent
+    from cpp_mujoco.planners import make_planner
+
+    if name == "general+value-beam":
+        return ValueBeamAgent(load_agent("general"))
+    return load_agent(name) if name == "general" else make_planner(name)
 
 
 def result_path(name: str) -> Path:
@@ -54,6 +69,15 @@ def draw(maps, episodes: int, seed: int) -> list[tuple[int, tuple[int, int], int
 def better_hint(entry: dict | None, hint_seen: float) -> bool:
     """A cached episode, not proven, whose best mission sees fewer targets than the hint."""
     return entry is not None and entry["status"] == "feasible" and hint_seen > entry["seen"] + 0.5
+
+
+def earlier_search(map_set: str, solvers: dict) -> float | None:
+    """The search time limit the sample's file records, where that search still proves some of
+    its best missions in the cache (a run without ``--close-gaps`` keeps them)."""
+    path = result_path(map_set)
+    if not path.is_file() or not any(s.startswith("key-target search") for s in solvers):
+        return None
+    return json.loads(path.read_text()).get("search_time_limit_s")
 
 
 def solve_one(task):
@@ -80,21 +104,20 @@ def close_one(task) -> None:
 
 
 def run(args) -> dict:
-    from cpp_mujoco.agent import load_agent
     from cpp_mujoco.grid.graph import build_graph
     from cpp_mujoco.map_sets.sets import load_map_set
-    from cpp_mujoco.planners import BeamSearchPlanner, make_planner
+    from cpp_mujoco.planners import BeamSearchPlanner
     from cpp_mujoco.planners.optimal import trajectory_actions
     from cpp_mujoco.planners.optimal_solver import SolverOptions, solver_version
     from cpp_mujoco.protocol.evaluate import evaluate
     from cpp_mujoco.protocol.optimum_cache import OptimumCache
+    from cpp_mujoco.protocol.policy import policy_identity
     from cpp_mujoco.util.io import atomic_write_text
 
     maps = load_map_set(args.map_set)
     sample = draw(maps, args.episodes, args.seed)
     hints = [(-1.0, None)] * len(sample)
-    flown = {name: load_agent(name) if name == "general" else make_planner(name)
-             for name in args.policies}  # fmt: skip
+    flown = {name: make_policy(name) for name in args.policies}
     if args.beam_width:
         wide = BeamSearchPlanner(width=args.beam_width)
         flown[wide.name] = wide
@@ -153,10 +176,11 @@ def run(args) -> dict:
         "solver": solver_version(options.solver),
         "solvers": dict(sorted(solvers.items())),  # which solver's mission each episode keeps
         "time_limit_s": args.time_limit,
-        "search_time_limit_s": args.close_gaps,
+        "search_time_limit_s": args.close_gaps or earlier_search(args.map_set, solvers),
         "statuses": {s: status.count(s) for s in sorted(set(status))},
         "best_found": float(best_a.mean()),
         "bound": float(np.mean(bound)),
+        "policy_identities": {name: policy_identity(p) for name, p in flown.items()},
         "policies": {
             name: {
                 "coverage": float(np.mean(cov)),

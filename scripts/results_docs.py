@@ -169,7 +169,10 @@ def map_set_page(paths: list[Path]) -> str:
     for path in paths:
         data = json.loads(path.read_text(encoding="utf-8"))
         name = data["map_set"]["name"]
-        more = [f"network_alone_{name}.json", f"optimum_{name}.json", f"symmetric_q_{name}.json"]
+        more = [
+            f"network_alone_{name}.json", f"optimum_{name}.json", f"symmetric_q_{name}.json",
+            f"value_beam_{name}.json",
+        ]  # fmt: skip
         entries.append(
             (path.name, data, *(load(f) if (RESULTS / f).is_file() else None for f in more))
         )

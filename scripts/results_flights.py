@@ -12,6 +12,8 @@
     python scripts/results_flights.py network-alone --map-set city32-v1 --agent general-city
     python scripts/results_flights.py symmetric-q --map-set scatter16-v1
                                                       # results/symmetric_q_*.json
+    python scripts/results_flights.py value-beam --map-set scatter16-v1
+                                                      # results/value_beam_*.json
     python scripts/results_flights.py energy                      # results/action_energy.json
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
     python scripts/results_flights.py calibration                 # results/calibration.json
@@ -81,6 +83,13 @@ def symmetric_q(name: str, agent: str) -> None:
     protocol on the grid: results/symmetric_q_<NAME>.json."""
     args = ["--agent", agent, "--rule", "+symmetric-q"]
     _evaluate_set(name, args, f"symmetric_q_{name}.json")
+
+
+def value_beam(name: str, agent: str) -> None:
+    """The general agent with its rules flown through the beam search its Q-values rank
+    (``--value-beam``, 32 paths) on a map set, the whole protocol on the grid:
+    results/value_beam_<NAME>.json."""
+    _evaluate_set(name, ["--agent", agent, "--value-beam"], f"value_beam_{name}.json")
 
 
 def _evaluate_set(name: str, args: list[str], result: str) -> None:
@@ -195,15 +204,15 @@ def main(argv=None) -> int:
     p.add_argument(
         "family",
         choices=[
-            "planners", "transfer", "map-set", "network-alone", "symmetric-q", "energy",
-            "wind-agents", "calibration",
+            "planners", "transfer", "map-set", "network-alone", "symmetric-q", "value-beam",
+            "energy", "wind-agents", "calibration",
         ],
     )  # fmt: skip
     p.add_argument("--map-set", default="heldout16-v1", help="map-set: which set")
     p.add_argument(
         "--agent", default="general",
-        help="map-set, network-alone, symmetric-q: the general agent flown (general-city on the "
-        "city sets)",
+        help="map-set, network-alone, symmetric-q, value-beam: the general agent flown "
+        "(general-city on the city sets)",
     )  # fmt: skip
     p.add_argument("--no-agent", action="store_true", help="map-set: the planners only")
     p.add_argument("--workers", type=int, default=2, help="transfer: MuJoCo worker processes")
@@ -221,6 +230,8 @@ def main(argv=None) -> int:
         network_alone(args.map_set, args.agent)
     elif args.family == "symmetric-q":
         symmetric_q(args.map_set, args.agent)
+    elif args.family == "value-beam":
+        value_beam(args.map_set, args.agent)
     elif args.family == "wind-agents":
         wind_agents()
     elif args.family == "calibration":

@@ -101,6 +101,7 @@ def test_symmetric_q_as_the_last_rule_takes_the_mean_s_argmax_among_the_allowed(
     ("argv", "message"),
     [
         (["--rule", "+finish-mask"], "give --agent too"),
+        (["--value-beam", "8"], "give --agent too"),
         (["--agent", "C", "--rule", "none", "--rule", "return-mask"], "give it alone"),
         (["--agent", "C", "--rule", "return-mask", "--rule", "no-finish-mask"], "not both"),
     ],

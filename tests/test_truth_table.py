@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from cpp_mujoco.review.truth_table import (
+    VALUE_BEAM_FILE,
     agent_policy,
     bundled_row,
     map_set_page,
@@ -15,6 +16,7 @@ from cpp_mujoco.review.truth_table import (
     symmetric_q_row,
     symmetric_q_table,
     truth_table,
+    variant_table,
 )
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
@@ -146,13 +148,13 @@ def test_a_symmetric_q_file_of_another_file_or_other_rules_is_refused_and_named(
         other["conditions"]["policy"].update(change)
         with pytest.raises(ValueError, match="another file or other rules"):
             symmetric_q_table([(data, other)])
-        entries = [("map_set_heldout16-v1.json", data, None, None, other)]
+        entries = [("map_set_heldout16-v1.json", data, None, None, other, None)]
         page = map_set_page(entries, "<!-- generated -->", "flights")
         bundled = f"{bundled_row(data)['mean_coverage_ratio']:.2%} · 100.00% |"
         assert bundled in page.split("## The general agent with symmetric Q")[0]  # truth table
         assert "Not shown: heldout16-v1, whose symmetric-Q files" in page
         assert "90.00%" not in page
-    entries = [("map_set_heldout16-v1.json", data, None, None, as_symmetric_q(data))]
+    entries = [("map_set_heldout16-v1.json", data, None, None, as_symmetric_q(data), None)]
     page = map_set_page(entries, "<!-- generated -->", "flights")
     assert "90.00% · 100.00%" in page and "Not shown" not in page
 
@@ -163,3 +165,69 @@ def test_an_agent_flown_as_several_policies_in_one_set_file_is_refused():
     row["conditions"]["policy"]["digest"] = "0123456789ab"
     with pytest.raises(ValueError, match="flew as several policies"):
         agent_policy(data)
+
+
+def as_searched_sample(data: dict) -> dict:
+    """The set's optimum sample as if it had flown the bundled agent and its value beam."""
+    optimum = copy.deepcopy(load("optimum_heldout16-v1.json"))
+    agent = agent_policy(data)
+    optimum["policy_identities"] = {
+        "general": dict(agent),
+        "general+value-beam": {**agent, "search": {"name": "value-beam", "width": 32}},
+    }
+    optimum["policies"]["general+value-beam"] = {
+        "coverage": 0.7777, "gap_to_best": -0.0123, "gap_standard_error": 0.0021,
+    }  # fmt: skip
+    return optimum
+
+
+def test_the_value_beam_sits_beside_beam_search_and_the_agent_against_the_best_missions():
+    data = load("map_set_heldout16-v1.json")
+    optimum = as_searched_sample(data)
+    page = map_set_page([("f.json", data, None, optimum, None, None)], "<!-- g -->", "flights")
+    section = page.split("## Search with the learned values, against the limit")[1]
+    (row,) = [line for line in section.splitlines() if line.startswith("| heldout16-v1")]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    beam = optimum["policies"]["beam-search"]
+    assert cells[1] == "120"
+    assert cells[2] == f"{optimum['best_found']:.2%} ({optimum['statuses']['optimal']}/120)"
+    assert cells[3].startswith(f"{beam['coverage']:.2%} ({beam['gap_to_best'] * 100:+.2f} ±")
+    assert cells[5] == "77.77% (-1.23 ± 0.21)"
+
+
+def test_a_sample_of_another_agent_file_or_without_identities_is_named_not_shown():
+    data = load("map_set_heldout16-v1.json")
+    other = as_searched_sample(data)
+    other["policy_identities"]["general+value-beam"]["digest"] = "0123456789ab"
+    bare = as_searched_sample(data)
+    del bare["policy_identities"]
+    for optimum in (other, bare):
+        page = map_set_page([("f.json", data, None, optimum, None, None)], "<!-- g -->", "flights")
+        assert "Not shown: heldout16-v1, whose samples flew another file" in page
+        assert "77.77%" not in page
+
+
+def as_value_beam(data: dict) -> dict:
+    """A value-beam file made from a set file: the bundled row searched, at 80 %."""
+    out = copy.deepcopy(data)
+    (row,) = [r for r in out["policies"] if r["policy"] == "ddqn[general]"]
+    row["policy"], row["mean_coverage_ratio"] = "ddqn[general]+value-beam", 0.8
+    out["policies"] = [row]
+    out["conditions"]["policy"] = {**agent_policy(data), "search": {"name": "value-beam"}}
+    return out
+
+
+def test_the_value_beam_s_whole_protocol_sits_beside_the_bundled_policy_or_is_named():
+    data = load("map_set_heldout16-v1.json")
+    page = map_set_page([("f.json", data, None, None, None, as_value_beam(data))], "", "flights")
+    section = page.split("## The general agent searching with its values, the whole protocol")[1]
+    (row,) = [line for line in section.splitlines() if line.startswith("| heldout16-v1")]
+    assert "| 80.00% · 100.00% |" in row and "Not shown" not in section.split("##")[0]
+    other = as_value_beam(data)
+    other["conditions"]["policy"]["digest"] = "0123456789ab"
+    page = map_set_page([("f.json", data, None, None, None, other)], "", "flights")
+    assert "Not shown: heldout16-v1, whose value-beam files" in page and "80.00%" not in page
+    renamed = as_value_beam(data)
+    renamed["policies"][0]["policy"] = "ddqn[general-city]+value-beam"
+    with pytest.raises(ValueError, match="not the set's bundled agent"):
+        variant_table([(data, renamed)], VALUE_BEAM_FILE)

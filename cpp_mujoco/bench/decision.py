@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from cpp_mujoco.agent import GENERAL_AGENT, GENERAL_CITY_AGENT, load_agent
+from cpp_mujoco.agent.value_beam import ValueBeamAgent
 from cpp_mujoco.grid.mdp import GridMDP
 from cpp_mujoco.map_sets.sets import load_map_set
 from cpp_mujoco.map_sets.size_classes import budget_range, size_config
@@ -61,6 +62,7 @@ def run() -> dict:
         policies = {
             "general": agent,  # with its rules: return, revisit, finish and progress masks
             "general_network_alone": agent.with_rules(["return-mask"]),
+            "general_value_beam": ValueBeamAgent(agent),  # plans at its first decision
             "safe_greedy": SafeGreedyPlanner(),
             "beam_search": BeamSearchPlanner(),
         }

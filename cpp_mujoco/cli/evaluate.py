@@ -67,7 +67,7 @@ def cmd_evaluate(args) -> None:
     if args.agent:
         from cpp_mujoco.agent import load_agent  # heavy: torch, only with --agent
 
-        agents = [agent_entry(s, load_agent(s), args.rule) for s in args.agent]
+        agents = [agent_entry(s, load_agent(s), args.rule, args.value_beam) for s in args.agent]
         for (_, agent), grid_map in itertools.product(agents, grid_maps):  # before anything flies
             check_fits(agent, grid_map, args.any_map)
         policies += agents

@@ -76,14 +76,23 @@ def cmd_generate(args) -> None:
 
 
 # --------------------------------------------------------------------------- evaluate --map-set
-def agent_entry(spec: str, agent, rules: list[str] | None) -> tuple[str, object]:
+def agent_entry(
+    spec: str, agent, rules: list[str] | None, value_beam: int | None = None
+) -> tuple[str, object]:
     """(label, agent) of ``--agent SPEC`` flown with ``--rule rules`` (None: the file's own
-    rules); a label with other rules than the file's says which (so do file names: runs with
-    other rules never overwrite each other)."""
+    rules) and, with ``--value-beam WIDTH``, through the beam search its Q-values rank; a label
+    with other rules than the file's says which (so do file names: runs with other rules never
+    overwrite each other), one with search says so and its width."""
     names = rules_for(agent.rule_names, rules)
-    if names == agent.rule_names:
-        return f"ddqn[{spec}]", agent
-    return f"ddqn[{spec}, rules: {'+'.join(names) or 'none'}]", agent.with_rules(names)
+    label = f"ddqn[{spec}]"
+    if names != agent.rule_names:
+        label, agent = f"ddqn[{spec}, rules: {'+'.join(names) or 'none'}]", agent.with_rules(names)
+    if value_beam:
+        from cpp_mujoco.agent.value_beam import ValueBeamAgent  # heavy: torch, only with --agent
+
+        agent = ValueBeamAgent(agent, value_beam)
+        label += agent.name.removeprefix(agent.agent.name)
+    return label, agent
 
 
 def _set_agent(spec: str, set_name: str, size: int):
@@ -134,7 +143,10 @@ def cmd_evaluate_map_set(
     if args.map:
         raise ValueError("--map-set replaces --map; give one of them")
     spec = map_set_spec(args.map_set)
-    agents = [agent_entry(a, _set_agent(a, spec.name, spec.size), args.rule) for a in args.agent]
+    agents = [
+        agent_entry(a, _set_agent(a, spec.name, spec.size), args.rule, args.value_beam)
+        for a in args.agent
+    ]
     maps = load_map_set(spec.name, first=args.first)
     names = args.planner or ([] if agents else list(planner_names))
 

@@ -229,7 +229,8 @@ def add_solver_options(p) -> None:
     )  # fmt: skip
 
 
-def add_rule_option(p) -> None:
+def add_agent_options(p) -> None:
+    """How the agents act: ``--rule`` (their rules) and ``--value-beam`` (search)."""
     rules = "; ".join(f"{name}: {what}" for name, what in RULES.items())
     changes = [f"{sign}{name}" for name in RULES for sign in ("+", "no-")]
     p.add_argument(
@@ -238,10 +239,18 @@ def add_rule_option(p) -> None:
         f"(the file's own with NAME added or taken away), 'none' (no rule) — {rules} "
         f"(default: each file's own)",
     )  # fmt: skip
+    p.add_argument(
+        "--value-beam", type=int_at_least(1), nargs="?", const=32, metavar="WIDTH",
+        help="fly each agent through a beam search of WIDTH paths per episode (default 32) "
+        "that its Q-values rank, its own mission the fallback; results name it "
+        "NAME+value-beam (cpp_mujoco.agent.value_beam)",
+    )  # fmt: skip
 
 
 def check_rules(args) -> None:
     """``--rule`` only with ``--agent``; ``none`` alone; names and changes not mixed."""
+    if getattr(args, "value_beam", None) and not getattr(args, "agent", None):
+        raise ValueError("--value-beam searches with the agents' values; give --agent too")
     rules = getattr(args, "rule", None)
     if not rules:
         return

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 from cpp_mujoco.cli.options import (
     PLANNER_NAMES,
+    add_agent_options,
     add_any_map_option,
     add_budget_step_option,
     add_cell_pixels_option,
     add_fov_side_option,
     add_progress_option,
-    add_rule_option,
     add_solver_options,
     add_wind_options,
     add_workers_option,
@@ -155,7 +155,7 @@ def add_evaluate(sub) -> None:
         "--agent", nargs="*", default=[],
         help="trained agents: a bundled agent name (A) or a checkpoint file",
     )  # fmt: skip
-    add_rule_option(p)
+    add_agent_options(p)
     add_any_map_option(p)
     p.add_argument(
         "--backend", default="grid", choices=["grid", "mujoco"],

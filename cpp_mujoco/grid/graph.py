@@ -179,11 +179,20 @@ class MapGraph:
 
         Cells × words (the beam search's popcount form), built from the index table.
         """
+        return self._view_bits(self.fov_targets)
+
+    @cached_property
+    def fov_view_bits(self) -> np.ndarray:
+        """As :attr:`fov_target_bits`, every cell the MDP marks seen from p: the coverage layer
+        a network reads (a hidden or off-grid entry of the view table points at p itself)."""
+        return self._view_bits(np.ones_like(self.fov_valid))
+
+    def _view_bits(self, which: np.ndarray) -> np.ndarray:
         n = self.num_cells
         bits = np.zeros((n, -(-n // 64)), dtype=np.uint64)
         owner = np.arange(n)
         for k in range(self.fov_cells.shape[1]):  # one entry per row each time: no collisions
-            on = self.fov_targets[:, k]
+            on = which[:, k]
             q = self.fov_cells[on, k]
             bits[owner[on], q >> 6] |= np.left_shift(np.uint64(1), (q & 63).astype(np.uint64))
         return bits

@@ -13,6 +13,8 @@ plan's (e.g. under the physics backend) that episode is replanned from where it 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from cpp_mujoco.grid.actions import LAND
@@ -37,6 +39,12 @@ def _popcount(bits: np.ndarray) -> np.ndarray:
     return np.bitwise_count(bits).sum(axis=-1, dtype=np.int64)
 
 
+def _unpack(bits: np.ndarray, cells: int) -> np.ndarray:
+    """Inverse of :func:`_pack`: (..., words) uint64 → (..., cells) bool."""
+    flat = np.unpackbits(bits.view(np.uint8), axis=-1, bitorder="little")
+    return flat[..., :cells].astype(bool)
+
+
 def _group_rank(group: np.ndarray, keys: tuple[np.ndarray, ...]) -> np.ndarray:
     """Rank of each element within its group under ``keys`` (last key most significant)."""
     order = np.lexsort((*keys, group))
@@ -50,21 +58,34 @@ def _group_rank(group: np.ndarray, keys: tuple[np.ndarray, ...]) -> np.ndarray:
 
 _CHUNK_BYTES = 64 << 20  # rough bound on one chunk's beam of packed coverage
 
+# (cells (R,), budgets left (R,), coverage (R, H·W) bool) of R beam rows → (R, 5) how many more
+# target cells each action is worth from there (a learned value, :mod:`cpp_mujoco.agent.value_beam`)
+ActionValues = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
 
 def plan_paths(
-    g: MapGraph, pos: np.ndarray, budget: np.ndarray, coverage: np.ndarray, width: int
+    g: MapGraph,
+    pos: np.ndarray,
+    budget: np.ndarray,
+    coverage: np.ndarray,
+    width: int,
+    values: ActionValues | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Best landed action sequence per episode: (actions (k, T) padded with LAND, lengths (k,)).
 
+    ``values``: the exploring half of the beam keeps the paths with the most targets seen plus
+    ``values`` of the move that made them (else: most seen, then nearest to unseen targets).
     Episodes are searched independently, so they are planned in chunks whose beams (each row
     a packed coverage bitset of the map) fit in ``_CHUNK_BYTES``; results do not depend on it.
     """
-    words = -(-g.num_cells // 64)
+    words = -(-g.num_cells // 64) * (2 if values else 1)  # values read the whole coverage too
     chunk = max(1, _CHUNK_BYTES // (4 * LAND * width * words * 8))  # ~4 copies of 4·width rows
     if pos.size <= chunk:
-        return _plan_chunk(g, pos, budget, coverage, width)
+        return _plan_chunk(g, pos, budget, coverage, width, values)
     parts = [
-        _plan_chunk(g, pos[i : i + chunk], budget[i : i + chunk], coverage[i : i + chunk], width)
+        _plan_chunk(
+            g, pos[i : i + chunk], budget[i : i + chunk], coverage[i : i + chunk], width, values
+        )
         for i in range(0, pos.size, chunk)
     ]
     steps = max(a.shape[1] for a, _ in parts)
@@ -73,7 +94,12 @@ def plan_paths(
 
 
 def _plan_chunk(
-    g: MapGraph, pos: np.ndarray, budget: np.ndarray, coverage: np.ndarray, width: int
+    g: MapGraph,
+    pos: np.ndarray,
+    budget: np.ndarray,
+    coverage: np.ndarray,
+    width: int,
+    values: ActionValues | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     k = pos.size
     fov_bits = g.fov_target_bits
@@ -85,6 +111,7 @@ def _plan_chunk(
     cur = pos.copy()
     left = budget.copy()
     bits = _pack(coverage & target)
+    seen = _pack(coverage) if values else None  # every cell seen: what a network reads
     history: list[tuple[np.ndarray, np.ndarray]] = []  # (parent row, action) per depth
     best_value = np.full(k, -1, dtype=np.int64)
     best_depth = np.zeros(k, dtype=np.int64)
@@ -110,6 +137,9 @@ def _plan_chunk(
             break
         new_bits = bits[parent] | fov_bits[nxt]
         score = _popcount(new_bits)
+        if values:
+            worth = values(cur, left, _unpack(seen, g.num_cells))[parent, action]
+            estimate = _popcount(bits)[parent] + worth
         new_ep = ep[parent]
         key = nxt.astype(np.uint64) * _MIX
         for w in range(new_bits.shape[1]):
@@ -124,10 +154,13 @@ def _plan_chunk(
         # to unseen targets), half for returning (most seen, then nearest to a landing cell):
         # ranking on coverage alone fills the beam with paths that can never get home in time
         cells, ep_u, score_u = nxt[order], new_ep[order], score[order]
-        explore = _group_rank(ep_u, (toward_targets[cells], -score_u))
+        ahead = -estimate[order] if values else -score_u
+        explore = _group_rank(ep_u, (toward_targets[cells], ahead))
         ret = _group_rank(ep_u, (g.home[cells], -score_u))
         order = order[(explore < width - width // 2) | (ret < width // 2)]
         history.append((parent[order], action[order]))
+        if values:
+            seen = seen[parent[order]] | g.fov_view_bits[nxt[order]]
         ep, cur, left, bits = new_ep[order], nxt[order], left[parent[order]] - 1, new_bits[order]
     # backtrack each episode's best landed path
     length = best_depth + 1
@@ -196,12 +229,12 @@ class BeamSearchPlanner:
         return self._plans[rows, cursor]
 
     def _search(self, g, pos, budget, coverage):
-        """The beam's plan, or the safe greedy planner's where that sees more (the incumbent)."""
+        """The beam's plan, or the incumbent's where that sees more: never worse than it."""
         config = GridConfig(fov_side=self.fov_side)
-        beam, beam_len = plan_paths(g, pos, budget, coverage, self.width)
+        beam, beam_len = plan_paths(g, pos, budget, coverage, self.width, self._values(g))
         _, beam_seen, _ = rollout(g.grid_map, _Replay(beam), pos, budget, coverage, config)
         greedy, greedy_seen, greedy_len = rollout(
-            g.grid_map, SafeGreedyPlanner(self.fov_side), pos, budget, coverage, config
+            g.grid_map, self._incumbent(), pos, budget, coverage, config
         )
         steps = max(beam.shape[1], greedy.shape[1])
         beam = np.pad(beam, ((0, 0), (0, steps - beam.shape[1])), constant_values=LAND)
@@ -216,6 +249,14 @@ class BeamSearchPlanner:
             positions[:, t] = g.safety.next_cell[positions[:, t - 1], actions[:, t - 1]]
         budgets = budget[:, None] - np.arange(steps)[None, :]
         return actions, positions, budgets, length
+
+    def _values(self, g: MapGraph) -> ActionValues | None:
+        """What ranks the exploring half of the beam (None: targets seen, then the nearest)."""
+        return None
+
+    def _incumbent(self):
+        """The policy whose mission is kept where it sees more than the beam's: safe greedy."""
+        return SafeGreedyPlanner(self.fov_side)
 
     def _store(self, rows, actions, positions, budgets, length, n: int) -> None:
         steps = actions.shape[1]

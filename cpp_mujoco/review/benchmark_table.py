@@ -82,6 +82,7 @@ _BENCH_ROWS = (
 _DECISION_POLICIES = (
     ("general", "general agent with its rules", "≤ 20 ms"),
     ("general_network_alone", "general agent, network + return rule", "≤ 20 ms"),
+    ("general_value_beam", "general agent searching with its values (value beam)", ""),
     ("general_city", "city agent with its rules (on city32-v1)", "≤ 20 ms"),
     ("safe_greedy", "safe greedy planner", ""),
     ("beam_search", "beam search planner", ""),
@@ -93,8 +94,9 @@ _BENCH_ROWS += tuple(
     for name, label, target in _DECISION_POLICIES
     for key in [f"{name}_{size}x{size}_ms_mean"]
 ) + tuple(
-    (f"beam search's first decision (its whole plan), {size}×{size}",
-     ("decision", f"beam_search_{size}x{size}_ms_max"), "{:.0f} ms", "")
+    (f"{label}'s first decision (its whole plan), {size}×{size}",
+     ("decision", f"{name}_{size}x{size}_ms_max"), "{:.0f} ms", "")
+    for name, label in (("beam_search", "beam search"), ("general_value_beam", "the value beam"))
     for size in (16, 32)
 )  # fmt: skip
 

@@ -8,8 +8,10 @@ are given as gaps to beam search on that sample, never as a coverage beside the 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 
 from cpp_mujoco.review.doc_tables import budget_range_text
+from cpp_mujoco.review.search_table import SEARCH_TEXT, VALUE_BEAM, sample_fits, search_table
 
 PLANNERS = ("safe-greedy", "beam-search")
 TRUTH_TEXT = (
@@ -112,16 +114,64 @@ def agent_policy(data: dict) -> dict | None:
     return json.loads(records.pop())
 
 
+@dataclass(frozen=True)
+class Variant:
+    """A one-agent file beside a set file: the set's bundled agent with one thing added — its
+    row's label is the bundled row's with ``suffix`` (inside the brackets with ``rules:``, as a
+    rule changes it; after them, as search does), its policy record the bundled one plus the
+    key ``added``."""
+
+    what: str  # the file's kind, in errors and notes
+    column: str  # its column's head
+    suffix: str  # how its row's label ends
+    added: str  # the key its policy record adds (a rule's flag, the search)
+    family: str  # scripts/results_flights.py's family that flies it
+    heading: str  # its section's
+
+    def row(self, data: dict) -> dict:
+        """The file's one agent row of this kind."""
+        rows = [r for r in data["policies"] if r["policy"].endswith(self.suffix)]
+        if len(rows) != 1:
+            names = [r["policy"] for r in data["policies"]]
+            raise ValueError(f"a {self.what} result holds one {self.family} agent row, not {names}")
+        return rows[0]
+
+    def same_agent(self, data: dict, row: dict) -> None:
+        """Its row flew the set file's bundled agent (by label)."""
+        if self.suffix.endswith("]"):  # a rule: inside the brackets
+            return _same_agent(data, row, self.what)
+        bundled = bundled_row(data)
+        if bundled is None or row["policy"] != f"{bundled['policy']}{self.suffix}":
+            raise ValueError(
+                f"{data['map_set']['name']}: the {self.what} file flew {row['policy']}, not the "
+                f"set's bundled agent {bundled and bundled['policy']}"
+            )
+
+    def fits(self, data: dict, variant: dict) -> bool:
+        """The file flew the set file's bundled agent itself — the same file (digest) with the
+        same rules — plus this variant's addition, nothing else."""
+        ours, theirs = agent_policy(data), variant["conditions"]["policy"]
+        if ours is None or self.added not in theirs:
+            return False
+        where = ("source", self.added)  # the path it was read from: the digest names the file
+        return {k: v for k, v in ours.items() if k not in where} == {
+            k: v for k, v in theirs.items() if k not in where
+        }
+
+
+SYMMETRIC_Q = Variant(
+    "symmetric-Q", "+ symmetric Q", "+symmetric-q]", "symmetric_q", "symmetric-q",
+    "The general agent with symmetric Q",
+)  # fmt: skip
+VALUE_BEAM_FILE = Variant(
+    "value-beam", "+ value beam", "+value-beam", "search", "value-beam",
+    "The general agent searching with its values, the whole protocol",
+)  # fmt: skip
+
+
 def symmetric_q_fits(data: dict, variant: dict) -> bool:
-    """The symmetric-Q file flew the set file's bundled agent itself — the same file (digest)
-    with the same rules — plus the symmetric-Q rule, nothing else."""
-    ours, theirs = agent_policy(data), variant["conditions"]["policy"]
-    if ours is None or "symmetric_q" not in theirs:
-        return False
-    where = ("source", "symmetric_q")  # the path it was read from: the digest names the file
-    return {k: v for k, v in ours.items() if k not in where} == {
-        k: v for k, v in theirs.items() if k not in where
-    }
+    """The symmetric-Q file flew the set file's bundled agent itself plus the rule."""
+    return SYMMETRIC_Q.fits(data, variant)
 
 
 def _same_maps(data: dict, optimum: dict) -> None:
@@ -166,13 +216,11 @@ def truth_table(entries: list[tuple[dict, dict | None, dict | None]]) -> str:
 
 
 def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
-    """The held-out sets' page from ``(file name, map_set file, network-alone file or None,
-    optimum sample or None, symmetric-Q file or None)`` per set: the truth table, the general
-    agent with symmetric Q where flown, then each set's policies."""
-    table = truth_table([(data, network, optimum) for _, data, network, optimum, _ in entries])
-    flown = [(data, variant) for _, data, _, _, variant in entries if variant is not None]
-    symmetric = [(data, variant) for data, variant in flown if symmetric_q_fits(data, variant)]
-    earlier = [data["map_set"]["name"] for data, v in flown if not symmetric_q_fits(data, v)]
+    """The held-out sets' page from ``(file name, map_set file, network-alone file, optimum
+    sample, symmetric-Q file, value-beam file)`` per set (None: none): the truth table, the
+    general agent with symmetric Q, then searching with its values, where flown, then each set's
+    policies."""
+    table = truth_table([(e[1], e[2], e[3]) for e in entries])
     parts = [
         generated,
         "# Results: held-out map sets",
@@ -187,17 +235,9 @@ def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
         "",
         TRUTH_TEXT,
     ]
-    if flown:
-        parts += ["", "## The general agent with symmetric Q"]
-    if symmetric:
-        parts += ["", symmetric_q_table(symmetric), "", SYMMETRIC_Q_TEXT]
-    if earlier:
-        parts += [
-            "",
-            f"Not shown: {', '.join(earlier)}, whose symmetric-Q files were flown with an earlier "
-            "file or rule set of the bundled agent (`python scripts/results_flights.py "
-            "symmetric-q --map-set SET` flies the present one).",
-        ]
+    parts += variant_section([(e[1], e[4]) for e in entries], SYMMETRIC_Q, SYMMETRIC_Q_TEXT)
+    parts += search_section([(e[1], e[3]) for e in entries])
+    parts += variant_section([(e[1], e[5]) for e in entries], VALUE_BEAM_FILE, VALUE_BEAM_TEXT)
     for file_name, data, *_ in entries:
         spec = data["map_set"]
         agent = _agent_name(bundled_row(data))
@@ -237,30 +277,32 @@ SYMMETRIC_Q_TEXT = (
 
 def symmetric_q_row(data: dict) -> dict:
     """The symmetric-Q file's one agent row (``ddqn[NAME, rules: …+symmetric-q]``)."""
-    rows = [r for r in data["policies"] if r["policy"].endswith("+symmetric-q]")]
-    if len(rows) != 1:
-        names = [r["policy"] for r in data["policies"]]
-        raise ValueError(f"a symmetric-Q result holds one symmetric-q agent row, not {names}")
-    return rows[0]
+    return SYMMETRIC_Q.row(data)
 
 
 def symmetric_q_table(entries: list[tuple[dict, dict]]) -> str:
-    """One row per set from ``(map_set file, symmetric-Q file)``: coverage · landing of the
-    bundled policy, the same agent with symmetric Q, and the planners, over the full protocol."""
+    """:func:`variant_table` of symmetric-Q files."""
+    return variant_table(entries, SYMMETRIC_Q)
+
+
+def variant_table(entries: list[tuple[dict, dict]], variant: Variant) -> str:
+    """One row per set from ``(map_set file, variant file)``: coverage · landing of the bundled
+    policy, the same agent with the variant's addition, and the planners, over the full
+    protocol."""
     lines = [
-        "| set | episodes | bundled policy | + symmetric Q | safe greedy | beam search |",
+        f"| set | episodes | bundled policy | {variant.column} | safe greedy | beam search |",
         "|---|---|---|---|---|---|",
     ]
-    for data, variant in entries:
-        _same_protocol(data, variant, "symmetric-Q")
-        row, bundled = symmetric_q_row(variant), bundled_row(data)
+    for data, flown in entries:
+        _same_protocol(data, flown, variant.what)
+        row, bundled = variant.row(flown), bundled_row(data)
         if bundled is None or row["episodes"] != bundled["episodes"]:
             raise ValueError(f"{data['map_set']['name']}: no bundled row of the same episodes")
-        _same_agent(data, row, "symmetric-Q")
-        if not symmetric_q_fits(data, variant):
+        variant.same_agent(data, row)
+        if not variant.fits(data, flown):
             raise ValueError(
-                f"{data['map_set']['name']}: the symmetric-Q file flew another file or other "
-                "rules than the bundled policy's, not just symmetric Q added"
+                f"{data['map_set']['name']}: the {variant.what} file flew another file or other "
+                f"rules than the bundled policy's, not just {variant.added} added"
             )
         by_name = {r["policy"]: r for r in data["policies"]}
         lines.append(
@@ -268,3 +310,52 @@ def symmetric_q_table(entries: list[tuple[dict, dict]]) -> str:
             f"{_cell(by_name.get(PLANNERS[0]))} | {_cell(by_name.get(PLANNERS[1]))} |"
         )
     return "\n".join(lines)
+
+
+def variant_section(entries: list[tuple[dict, dict | None]], variant: Variant, text: str):
+    """The variant's table over the sets whose file flew the present bundled agent, then the
+    sets whose file flew an earlier one, named."""
+    flown = [(data, other) for data, other in entries if other is not None]
+    if not flown:
+        return []
+    fits = [(data, other) for data, other in flown if variant.fits(data, other)]
+    earlier = [data["map_set"]["name"] for data, other in flown if not variant.fits(data, other)]
+    parts = ["", f"## {variant.heading}"]
+    if fits:
+        parts += ["", variant_table(fits, variant), "", text]
+    if earlier:
+        parts += [
+            "",
+            f"Not shown: {', '.join(earlier)}, whose {variant.what} files were flown with an "
+            "earlier file or rule set of the bundled agent (`python scripts/results_flights.py "
+            f"{variant.family} --map-set SET` flies the present one).",
+        ]
+    return parts
+
+
+VALUE_BEAM_TEXT = (
+    "The bundled general agent with its rules flown through the beam search its Q-values rank "
+    "(`--value-beam`: 32 paths per episode, its own mission the fallback; `python "
+    "scripts/results_flights.py value-beam --map-set SET`, results/value_beam_SET.json), beside "
+    "the same set's bundled policy and planners, over the whole protocol; the sets flown so far."
+)
+
+
+def search_section(entries: list[tuple[dict, dict | None]]) -> list[str]:
+    """The value beam on the optimum samples that flew it with the set's bundled agent; the sets
+    whose sample flew it with another are named."""
+    flown = [(d, o) for d, o in entries if o is not None and VALUE_BEAM in o["policies"]]
+    if not flown:
+        return []
+    fits = [o for d, o in flown if sample_fits(o, agent_policy(d))]
+    parts = ["", "## Search with the learned values, against the limit"]
+    if fits:
+        parts += ["", search_table(fits), "", SEARCH_TEXT]
+    if others := [d["map_set"]["name"] for d, o in flown if not sample_fits(o, agent_policy(d))]:
+        parts += [
+            "",
+            f"Not shown: {', '.join(others)}, whose samples flew another file or rule set than "
+            "the set's bundled agent (`python scripts/optimum_sample.py --map-set SET` flies the "
+            "present one).",
+        ]
+    return parts

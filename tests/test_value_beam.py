@@ -1,0 +1,79 @@
+"""Search with the learned values: the beam's whole-coverage bookkeeping, the agent as its
+incumbent, and how results name it."""
+
+import numpy as np
+import pytest
+
+from cpp_mujoco.agent import load_agent
+from cpp_mujoco.agent.value_beam import ValueBeamAgent
+from cpp_mujoco.cli.maps import agent_entry
+from cpp_mujoco.grid.actions import LAND, NUM_ACTIONS
+from cpp_mujoco.grid.graph import build_graph
+from cpp_mujoco.grid.mdp import GridConfig, GridMDP
+from cpp_mujoco.map_sets.sets import load_map_set
+from cpp_mujoco.planners.beam_search import _pack, _unpack, plan_paths
+from cpp_mujoco.protocol.evaluate import evaluate
+from cpp_mujoco.protocol.policy import policy_identity
+
+
+def test_view_bits_hold_what_the_mdp_marks_from_every_cell():
+    grid_map = load_map_set("city32-v1", first=1)[0]  # obstacles hide part of the square
+    g = build_graph(grid_map)
+    cells = np.flatnonzero(~grid_map.nfz.reshape(-1))
+    mdp = GridMDP(grid_map, cells.size, GridConfig(fov_side=3))
+    mdp.restore(cells, np.full(cells.size, 5), np.zeros((cells.size, g.num_cells), bool))
+    mdp.step(np.full(cells.size, LAND))
+    assert np.array_equal(_unpack(g.fov_view_bits[cells], g.num_cells), mdp.coverage)
+    assert np.array_equal(_unpack(_pack(mdp.coverage), g.num_cells), mdp.coverage)
+
+
+def test_the_values_read_each_path_s_whole_coverage():
+    grid_map = load_map_set("heldout16-v1", first=1)[0]
+    g = build_graph(grid_map)
+    start = np.flatnonzero(grid_map.landing.reshape(-1))[:1]
+    calls = []
+
+    def values(cells, left, coverage):
+        calls.append((cells.copy(), left.copy(), coverage.copy()))
+        return np.zeros((cells.size, NUM_ACTIONS))
+
+    plan_paths(g, start, np.array([30]), np.zeros((1, g.num_cells), bool), 8, values)
+    assert calls[0][2].sum() == 0 and calls[0][1][0] == 30  # the start: nothing seen yet
+    cells, left, coverage = calls[1]  # the paths one move on: each saw its cell's view
+    mdp = GridMDP(grid_map, cells.size, GridConfig(fov_side=3))
+    mdp.restore(np.repeat(start, cells.size), np.full(cells.size, 30), np.zeros_like(coverage))
+    moves = np.array([next(a for a in range(LAND) if g.safety.next_cell[start[0], a] == c)
+                      for c in cells])  # fmt: skip
+    mdp.step(moves)
+    assert np.array_equal(coverage, mdp.coverage) and (left == 29).all()
+    assert len(calls) > 20  # read at every depth
+
+
+@pytest.fixture(scope="module")
+def general():
+    return load_agent("general")
+
+
+def test_the_search_lands_and_never_sees_less_than_its_agent(general):
+    grid_map = load_map_set("heldout16-v1", first=1)[0]
+    search = evaluate(ValueBeamAgent(general, width=8), grid_map, budgets=[30])
+    alone = evaluate(general, grid_map, budgets=[30])
+    assert search.landing_ratio == 1.0
+    assert np.array_equal(search.starts, alone.starts)
+    assert (search.coverage >= alone.coverage - 1e-12).all()
+    assert search.coverage.mean() > alone.coverage.mean()  # it plans further than one step
+
+
+def test_results_name_the_search_its_width_and_the_agent_s_rules(general):
+    label, policy = agent_entry("general", general, None, 8)
+    assert label == "ddqn[general]+value-beam[width 8]"
+    identity = policy_identity(policy)
+    assert identity["search"] == {"name": "value-beam", "width": 8}
+    assert "progress_rule" in identity and identity["digest"] == general.metadata["digest"]
+    label, _ = agent_entry("general", general, ["return-mask"], 32)
+    assert label == "ddqn[general, rules: return-mask]+value-beam"
+
+
+def test_a_per_map_agent_searches_only_its_map():
+    search = ValueBeamAgent(load_agent("A"))
+    assert search.fits(load_map_set("heldout16-v1", first=1)[0]) is not None
