@@ -27,13 +27,16 @@ MAPS = ("A", "B", "C")
 
 def policies(name: str) -> list[tuple[str, object]]:
     from cpp_mujoco.agent import load_agent
+    from cpp_mujoco.agent.value_beam import ValueBeamAgent
     from cpp_mujoco.planners import make_planner
 
+    general = load_agent("general")
     return [
         ("safe-greedy", make_planner("safe-greedy")),
         ("beam-search", make_planner("beam-search")),
         (f"ddqn-{name}", load_agent(name)),
-        ("general", load_agent("general")),
+        ("general", general),
+        ("general+value-beam", ValueBeamAgent(general)),
     ]
 
 
@@ -104,11 +107,13 @@ def main(argv=None) -> int:
     p.add_argument(
         "--policy", nargs="+", metavar="LABEL",
         help="with --evaluate: re-fly only these policies' rows (safe-greedy, beam-search, "
-        "ddqn-A/-B/-C, general), keeping the file's other rows and its MuJoCo flights",
+        "ddqn-A/-B/-C, general, general+value-beam), keeping the file's other rows and its "
+        "MuJoCo flights",
     )  # fmt: skip
     p.add_argument("--check", action="store_true", help="exit 1 if the doc's table drifted")
     args = p.parse_args(argv)
-    known = {"safe-greedy", "beam-search", "general", *(f"ddqn-{m}" for m in MAPS)}
+    known = {"safe-greedy", "beam-search", "general", "general+value-beam"}
+    known |= {f"ddqn-{m}" for m in MAPS}
     if args.policy and not args.evaluate:
         p.error("--policy goes with --evaluate")
     if unknown := set(args.policy or ()) - known:
