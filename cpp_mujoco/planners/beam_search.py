@@ -233,15 +233,15 @@ class BeamSearchPlanner:
         config = GridConfig(fov_side=self.fov_side)
         beam, beam_len = plan_paths(g, pos, budget, coverage, self.width, self._values(g))
         _, beam_seen, _ = rollout(g.grid_map, _Replay(beam), pos, budget, coverage, config)
-        greedy, greedy_seen, greedy_len = rollout(
+        other, other_seen, other_len = rollout(
             g.grid_map, self._incumbent(), pos, budget, coverage, config
         )
-        steps = max(beam.shape[1], greedy.shape[1])
+        steps = max(beam.shape[1], other.shape[1])
         beam = np.pad(beam, ((0, 0), (0, steps - beam.shape[1])), constant_values=LAND)
-        greedy = np.pad(greedy, ((0, 0), (0, steps - greedy.shape[1])), constant_values=LAND)
-        use_greedy = greedy_seen > beam_seen
-        actions = np.where(use_greedy[:, None], greedy, beam)
-        length = np.where(use_greedy, greedy_len, beam_len)
+        other = np.pad(other, ((0, 0), (0, steps - other.shape[1])), constant_values=LAND)
+        use_other = other_seen > beam_seen
+        actions = np.where(use_other[:, None], other, beam)
+        length = np.where(use_other, other_len, beam_len)
         steps = actions.shape[1]
         positions = np.empty_like(actions)
         positions[:, 0] = pos

@@ -1,10 +1,7 @@
 """The general agent searching with its learned values against the limit: on each held-out set's
 optimum sample, the coverage of beam search, the bundled agent and the agent's value beam, each
-with its gap to the best missions the exact planner found on the same episodes.
-
-A sample's agent rows count only where they flew the set file's bundled agent — its file
-(digest) and its rules, the value beam adding nothing but the search — which the sample records
-per policy (``policy_identities``); a sample flown with another agent is named, not shown."""
+with its gap to the best missions the exact planner found on the same episodes. Which samples
+fit the set's bundled agent is decided by :func:`~cpp_mujoco.review.truth_table.sample_fits`."""
 
 from __future__ import annotations
 
@@ -18,25 +15,6 @@ SEARCH_TEXT = (
     "32 paths per episode that its Q-values rank, its own mission the fallback (`cpp-mujoco "
     "evaluate --agent general --value-beam`; [The agents](../agent.md))."
 )
-
-
-def _without(record: dict, *keys: str) -> dict:
-    return {k: v for k, v in record.items() if k not in keys}
-
-
-def sample_fits(optimum: dict, bundled: dict | None) -> bool:
-    """The sample's agent rows flew ``bundled`` (the set file's agent policy record): the same
-    file and rules, the value beam with its search added."""
-    identities = optimum.get("policy_identities", {})
-    if bundled is None or VALUE_BEAM not in identities or "general" not in identities:
-        return False
-    ours = _without(bundled, "source")
-    beam = identities[VALUE_BEAM]
-    return (
-        _without(identities["general"], "source") == ours
-        and _without(beam, "source", "search") == ours
-        and beam.get("search", {}).get("name") == "value-beam"
-    )
 
 
 def _cell(optimum: dict, name: str) -> str:

@@ -11,7 +11,7 @@ import json
 from dataclasses import dataclass
 
 from cpp_mujoco.review.doc_tables import budget_range_text
-from cpp_mujoco.review.search_table import SEARCH_TEXT, VALUE_BEAM, sample_fits, search_table
+from cpp_mujoco.review.search_table import SEARCH_TEXT, VALUE_BEAM, search_table
 
 PLANNERS = ("safe-greedy", "beam-search")
 TRUTH_TEXT = (
@@ -150,13 +150,18 @@ class Variant:
     def fits(self, data: dict, variant: dict) -> bool:
         """The file flew the set file's bundled agent itself — the same file (digest) with the
         same rules — plus this variant's addition, nothing else."""
-        ours, theirs = agent_policy(data), variant["conditions"]["policy"]
-        if ours is None or self.added not in theirs:
-            return False
-        where = ("source", self.added)  # the path it was read from: the digest names the file
-        return {k: v for k, v in ours.items() if k not in where} == {
-            k: v for k, v in theirs.items() if k not in where
-        }
+        return adds_only(agent_policy(data), variant["conditions"]["policy"], self.added)
+
+
+def adds_only(ours: dict | None, theirs: dict, added: str | None = None) -> bool:
+    """The policy record ``theirs`` is ``ours`` (the same file by digest, the same rules) with
+    the key ``added`` and nothing else besides; where each was read from does not count."""
+    if ours is None or (added is not None and added not in theirs):
+        return False
+    where = ("source", added)  # the path it was read from: the digest names the file
+    return {k: v for k, v in ours.items() if k not in where} == {
+        k: v for k, v in theirs.items() if k not in where
+    }
 
 
 SYMMETRIC_Q = Variant(
@@ -339,6 +344,21 @@ VALUE_BEAM_TEXT = (
     "scripts/results_flights.py value-beam --map-set SET`, results/value_beam_SET.json), beside "
     "the same set's bundled policy and planners, over the whole protocol; the sets flown so far."
 )
+
+
+def sample_fits(optimum: dict, bundled: dict | None) -> bool:
+    """An optimum sample's agent rows flew ``bundled`` (the set file's agent policy record), as
+    the sample records them per policy (``policy_identities``): ``general`` the same file and
+    rules, the value beam those with its search added."""
+    identities = optimum.get("policy_identities", {})
+    if VALUE_BEAM not in identities or "general" not in identities:
+        return False
+    beam = identities[VALUE_BEAM]
+    return (
+        adds_only(bundled, identities["general"])
+        and adds_only(bundled, beam, "search")
+        and beam["search"].get("name") == "value-beam"
+    )
 
 
 def search_section(entries: list[tuple[dict, dict | None]]) -> list[str]:
