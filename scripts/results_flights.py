@@ -12,7 +12,7 @@
     python scripts/results_flights.py network-alone --map-set city32-v1 --agent general-city
     python scripts/results_flights.py symmetric-q --map-set scatter16-v1
                                                       # results/symmetric_q_*.json
-    python scripts/results_flights.py value-beam --map-set scatter16-v1
+    python scripts/results_flights.py value-beam --map-set scatter16-v1 --workers 2
                                                       # results/value_beam_*.json
     python scripts/results_flights.py energy                      # results/action_energy.json
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
@@ -64,46 +64,49 @@ def transfer(workers: int, budget_step: int, wind_agents: bool = False) -> None:
     write(f"transfer_abc{suffix.replace('-', '_')}.json", {"command": command, "results": rows})
 
 
-def map_set(name: str, agent: str | None = "general") -> None:
+def map_set(name: str, agent: str | None = "general", workers: int = 1) -> None:
     """``cpp-mujoco evaluate --map-set NAME`` for the planners and a general agent (none: a set
     it does not fit, e.g. obstacles it cannot see) on the grid (every map, the whole protocol):
     results/map_set_<NAME>.json."""
     args = ["--planner", "safe-greedy", "beam-search", *(["--agent", agent] if agent else [])]
-    _evaluate_set(name, args, f"map_set_{name}.json")
+    _evaluate_set(name, args, f"map_set_{name}.json", workers)
 
 
-def network_alone(name: str, agent: str) -> None:
+def network_alone(name: str, agent: str, workers: int = 1) -> None:
     """The general agent's network with the return rule only (no revisit or finish mask) on a
     map set, the whole protocol on the grid: results/network_alone_<NAME>.json."""
-    _evaluate_set(name, ["--agent", agent, "--rule", "return-mask"], f"network_alone_{name}.json")
+    args = ["--agent", agent, "--rule", "return-mask"]
+    _evaluate_set(name, args, f"network_alone_{name}.json", workers)
 
 
-def symmetric_q(name: str, agent: str) -> None:
+def symmetric_q(name: str, agent: str, workers: int = 1) -> None:
     """The general agent with its rules and the symmetric-Q rule added on a map set, the whole
     protocol on the grid: results/symmetric_q_<NAME>.json."""
     args = ["--agent", agent, "--rule", "+symmetric-q"]
-    _evaluate_set(name, args, f"symmetric_q_{name}.json")
+    _evaluate_set(name, args, f"symmetric_q_{name}.json", workers)
 
 
-def value_beam(name: str, agent: str) -> None:
+def value_beam(name: str, agent: str, workers: int = 1) -> None:
     """The general agent with its rules flown through the beam search its Q-values rank
     (``--value-beam``, 32 paths) on a map set, the whole protocol on the grid:
     results/value_beam_<NAME>.json."""
-    _evaluate_set(name, ["--agent", agent, "--value-beam"], f"value_beam_{name}.json")
+    args = ["--agent", agent, "--value-beam"]
+    _evaluate_set(name, args, f"value_beam_{name}.json", workers)
 
 
-def _evaluate_set(name: str, args: list[str], result: str) -> None:
+def _evaluate_set(name: str, args: list[str], result: str, workers: int) -> None:
+    """``evaluate --map-set`` into runs/flights/<result>/ (an interrupted flight resumes from
+    its checkpoint there), the result copied to results/."""
     import shutil
-    import tempfile
 
     from cpp_mujoco.cli.main import main as cli
+    from cpp_mujoco.review.results import file_part
 
-    with tempfile.TemporaryDirectory() as out:
-        code = cli(["evaluate", "--map-set", name, *args, "--out", out])
-        if code:
-            raise SystemExit(code)
-        (written,) = Path(out).glob("grid_*.json")
-        shutil.copyfile(written, RESULTS / result)
+    out = ROOT / "runs" / "flights" / Path(result).stem
+    code = cli(["evaluate", "--map-set", name, *args, "--workers", str(workers), "--out", str(out)])
+    if code:
+        raise SystemExit(code)
+    shutil.copyfile(out / f"grid_{file_part(name)}.json", RESULTS / result)
     print(f"wrote results/{result}")
 
 
@@ -215,7 +218,11 @@ def main(argv=None) -> int:
         "(general-city on the city sets)",
     )  # fmt: skip
     p.add_argument("--no-agent", action="store_true", help="map-set: the planners only")
-    p.add_argument("--workers", type=int, default=2, help="transfer: MuJoCo worker processes")
+    p.add_argument(
+        "--workers", type=int, default=2,
+        help="transfer: MuJoCo worker processes; map-set, network-alone, symmetric-q, "
+        "value-beam: processes flying the set's maps side by side",
+    )  # fmt: skip
     p.add_argument("--budget-step", type=int, default=10, help="transfer: every n-th budget")
     p.add_argument("--wind-agents", action="store_true", help="transfer: the wind-robust agents")
     p.add_argument("--repeats", type=int, default=5, help="energy: gust histories per row")
@@ -225,13 +232,13 @@ def main(argv=None) -> int:
     elif args.family == "transfer":
         transfer(args.workers, args.budget_step, args.wind_agents)
     elif args.family == "map-set":
-        map_set(args.map_set, None if args.no_agent else args.agent)
+        map_set(args.map_set, None if args.no_agent else args.agent, args.workers)
     elif args.family == "network-alone":
-        network_alone(args.map_set, args.agent)
+        network_alone(args.map_set, args.agent, args.workers)
     elif args.family == "symmetric-q":
-        symmetric_q(args.map_set, args.agent)
+        symmetric_q(args.map_set, args.agent, args.workers)
     elif args.family == "value-beam":
-        value_beam(args.map_set, args.agent)
+        value_beam(args.map_set, args.agent, args.workers)
     elif args.family == "wind-agents":
         wind_agents()
     elif args.family == "calibration":

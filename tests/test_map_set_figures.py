@@ -185,7 +185,7 @@ def test_a_set_the_physics_cannot_build_fails_before_flying(monkeypatch):
         raise AssertionError("flew an episode")
 
     monkeypatch.setattr("cpp_mujoco.protocol.map_sets.make_env", no_arena)
-    monkeypatch.setattr("cpp_mujoco.protocol.map_sets.evaluate", never)
+    monkeypatch.setattr("cpp_mujoco.protocol.map_set_rows.evaluate", never)
     maps = load_map_set(probe.name)
     planner = [("safe-greedy", make_planner("safe-greedy"))]
     with pytest.raises(ValueError, match=r"'probe16-v1' \(16x16\) cannot be flown in MuJoCo"):

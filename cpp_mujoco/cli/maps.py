@@ -152,22 +152,27 @@ def cmd_evaluate_map_set(
 
     policies = [(n, make_planner(n, optimal=optimal_options(args))) for n in names] + agents
     out = out_dir(args.out)
-    physics: dict = {}
+    physics: dict = {"workers": args.workers}
     if args.backend == "mujoco":
         engine = "ray" if args.ray else "local"
-        physics = {"workers": args.workers, "env_kwargs": weather or {}, "engine": engine}
+        physics.update(env_kwargs=weather or {}, engine=engine)
     wind = grid_wind_option(args)
     if wind is not None:
         physics["grid_wind"] = wind
+    part = "" if args.first is None else f"_first{args.first}"
+    backend = args.backend if wind is None else f"grid-wind{args.grid_wind:g}"  # names the wind
+    stem = f"{backend}_{file_part(spec.name)}{part}"
+    checkpoint = out / f"{stem}.rows.json"  # an interrupted flight resumes from it
+    if checkpoint.exists():
+        print(f"resuming from {checkpoint} (the rows of this very flight it holds are reused)")
     with runtime or nullcontext():
         result = evaluate_map_set(
             spec, maps, policies, args.budget_step, progress_wanted(args), args.backend,
-            **physics,
+            checkpoint=checkpoint, **physics,
         )  # fmt: skip
     per_map, means = result.tables()
-    part = "" if args.first is None else f"_first{args.first}"
-    backend = args.backend if wind is None else f"grid-wind{args.grid_wind:g}"  # names the wind
-    path = result.to_json(out / f"{backend}_{file_part(spec.name)}{part}.json")
+    path = result.to_json(out / f"{stem}.json")
+    checkpoint.unlink()  # the result holds every row now
     grid_maps = {m.label: m for m in result.maps}  # drawn from the JSON just written
     figures = write_map_set_figures({path.stem: load_map_set_result(path)}, out, grid_maps)
     (flown,) = result.budgets.values()  # a set is one size class

@@ -182,7 +182,8 @@ def weather_options(args) -> dict:
 def add_workers_option(p) -> None:
     p.add_argument(
         "--workers", type=int_at_least(1), default=None,
-        help="MuJoCo worker processes (default: all cores)",
+        help="MuJoCo: episode worker processes (default: all cores); a map set on the grid: "
+        "processes flying its maps side by side (default: one, this process)",
     )  # fmt: skip
 
 

@@ -1,22 +1,22 @@
 """The paper's protocol over a map set: how well a policy does on maps it has never seen.
 
 Each map is flown with the protocol of :func:`~cpp_mujoco.protocol.evaluate.evaluate` (every
-landing cell
-× every budget of the set's size class, :func:`~cpp_mujoco.map_sets.size_classes.budget_range`) on
-the
-grid or in MuJoCo. A set's figure for a policy is the mean over its maps of the per-map ratios,
-so every map counts the same whatever its landing zone's size; the ratios pooled over all
-episodes are recorded beside it. The JSON names the set (name, version, how many of its maps),
-every map (name, seed, digest), the policy, backend and budgets, so no number is ambiguous. Each
-row also keeps one example episode (the map's first landing cell, the middle budget: its cells,
-coverage, landing), so the figures (:mod:`cpp_mujoco.review.map_set_figures`) can show what a
-policy did on a map from the JSON alone, without flying it again.
+landing cell × every budget of the set's size class,
+:func:`~cpp_mujoco.map_sets.size_classes.budget_range`) on the grid or in MuJoCo; on the grid the
+maps may be flown over worker processes, and a checkpoint lets an interrupted flight resume
+(:mod:`~cpp_mujoco.protocol.map_set_rows`). A set's figure for a policy is the mean over its
+maps of the per-map ratios, so every map counts the same whatever its landing zone's size; the
+ratios pooled over all episodes are recorded beside it. The JSON names the set (name, version,
+how many of its maps), every map (name, seed, digest), the policy, backend and budgets, so no
+number is ambiguous. Each row also keeps one example episode (the map's first landing cell, the
+middle budget: its cells, coverage, landing), so the figures
+(:mod:`cpp_mujoco.review.map_set_figures`) can show what a policy did on a map from the JSON
+alone, without flying it again.
 """
 
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -30,17 +30,11 @@ from cpp_mujoco.grid.wind import GridWind
 from cpp_mujoco.map_sets.sets import MapSetSpec
 from cpp_mujoco.map_sets.size_classes import size_config
 from cpp_mujoco.maps import GridMap
-from cpp_mujoco.protocol.evaluate import (
-    EvaluationResult,
-    evaluate,
-    protocol_budgets,
-    split_conditions,
-)
+from cpp_mujoco.protocol.evaluate import protocol_budgets, split_conditions
+from cpp_mujoco.protocol.map_set_rows import RowTask, example_budget, fly_rows
 from cpp_mujoco.protocol.physics_tasks import make_env
 from cpp_mujoco.util.io import atomic_write_text, json_default, json_plain
 from cpp_mujoco.util.tables import format_table
-
-_NUMBERS = ("episodes", "landing_ratio", "coverage_ratio", "mean_return", "mean_steps")
 
 
 @dataclass
@@ -207,29 +201,6 @@ class MapSetResult:
         )
 
 
-def example_budget(budgets: Sequence[int]) -> int:
-    """The budget of the rows' example episodes: the middle one of those flown."""
-    return int(budgets[len(budgets) // 2])
-
-
-def example_episode(result: EvaluationResult, budget: int) -> dict:
-    """The episode from the map's first landing cell at ``budget``: what a figure draws."""
-    start = result.starts[0]
-    sel = np.flatnonzero((result.budgets == budget) & (result.starts == start).all(axis=1))
-    if sel.size == 0:
-        raise ValueError(f"no episode from {tuple(start)} with budget {budget}")
-    i = int(sel[0])
-    cells = result.trajectories[i]
-    return {
-        "start": [int(start[0]), int(start[1])],
-        "budget": int(budget),
-        "cells": cells[cells >= 0].tolist(),
-        "landed": bool(result.landed[i]),
-        "coverage_ratio": float(result.coverage[i]),
-        "steps": int(result.steps[i]),
-    }
-
-
 def check_physics(spec: MapSetSpec, grid_map: GridMap, env_kwargs: dict | None = None) -> None:
     """Build the MuJoCo env of the set's first map before anything flies, so a set the physics
     cannot hold (or a bad weather option) fails at once, naming the set and its size."""
@@ -256,12 +227,15 @@ def evaluate_map_set(
     env_kwargs: dict | None = None,
     engine: str = "local",
     grid_wind: GridWind | None = None,
+    checkpoint: str | Path | None = None,
 ) -> MapSetResult:
     """Every policy over every map of the set on ``backend``, with the set's size-class budgets
-    (every ``budget_step``-th, the maximum always included). ``workers``, ``env_kwargs``
-    (weather) and ``engine`` are :func:`~cpp_mujoco.protocol.evaluate.evaluate`'s, for MuJoCo;
+    (every ``budget_step``-th, the maximum always included). ``workers``: in MuJoCo the episode
+    workers of :func:`~cpp_mujoco.protocol.evaluate.evaluate` (with its ``env_kwargs``, the
+    weather, and ``engine``); on the grid, processes flying maps side by side (default: here).
     ``grid_wind``: on the grid, the wind option every episode draws its wind from (each row's
-    conditions record it)."""
+    conditions record it). ``checkpoint``: a file keeping each row as it lands, so the flight
+    resumes (:mod:`~cpp_mujoco.protocol.map_set_rows`)."""
     if not maps:
         raise ValueError(f"map set {spec.name!r}: no maps to evaluate")
     if len(maps) > spec.count:
@@ -276,22 +250,26 @@ def evaluate_map_set(
         if backend != "grid":
             raise ValueError("grid_wind is the grid's wind option; MuJoCo flies env_kwargs' wind")
         config = replace(config, wind=grid_wind)
-    physics = {"workers": workers, "env_kwargs": env_kwargs, "engine": engine}
+    mujoco = backend == "mujoco"
+    physics = {"workers": workers, "env_kwargs": env_kwargs, "engine": engine} if mujoco else None
     return evaluate_maps(
         spec.identity(len(maps)), maps, [config] * len(maps), spec.seeds[: len(maps)], policies,
-        budget_step, progress, backend, physics if backend == "mujoco" else None,
+        budget_step, progress, backend, physics,
+        map_workers=None if mujoco else workers, checkpoint=checkpoint,
     )  # fmt: skip
 
 
 def evaluate_maps(identity: dict, maps: Sequence[GridMap], configs: Sequence[GridConfig],
                   seeds: Sequence[int], policies: Sequence[tuple[str, Any]], budget_step: int = 1,
                   progress: bool = False, backend: str = "grid",
-                  physics: dict[str, Any] | None = None) -> MapSetResult:  # fmt: skip
+                  physics: dict[str, Any] | None = None, *, map_workers: int | None = None,
+                  checkpoint: str | Path | None = None) -> MapSetResult:  # fmt: skip
     """Every policy over every map with the map's own config (its size class's budgets, every
     ``budget_step``-th): the protocol of :func:`evaluate_map_set` for any list of maps, e.g. a
     training run's validation pool; ``identity`` says what the maps are, ``seeds`` name them;
     ``physics``: :func:`~cpp_mujoco.protocol.evaluate.evaluate`'s MuJoCo options (``workers``,
-    ``env_kwargs``, ``engine``)."""
+    ``env_kwargs``, ``engine``); ``map_workers`` and ``checkpoint``:
+    :func:`~cpp_mujoco.protocol.map_set_rows.fly_rows`'s."""
     physics = physics or {}
     budgets: dict[int, list[int]] = {}
     for grid_map, config in zip(maps, configs, strict=True):
@@ -299,31 +277,12 @@ def evaluate_maps(identity: dict, maps: Sequence[GridMap], configs: Sequence[Gri
         if budgets.setdefault(max(grid_map.shape), flown) != flown:
             raise ValueError(f"maps of side {max(grid_map.shape)} with different budgets")
     result = MapSetResult(identity, list(maps), budgets, budget_step, backend=backend)
-    total = len(maps) * len(policies)
-    with tqdm(total=total, desc=result.name, unit="run", disable=not progress) as bar:
-        for name, policy in policies:
-            for grid_map, seed, config in zip(maps, seeds, configs, strict=True):
-                own = budgets[max(grid_map.shape)]
-                start = time.perf_counter()
-                r = evaluate(
-                    policy, grid_map, backend=backend, budgets=own, config=config,
-                    policy_name=name, **physics,
-                )  # fmt: skip
-                seconds = time.perf_counter() - start
-                summary = r.summary()
-                result.rows.append(
-                    {
-                        "map": grid_map.label,
-                        "seed": seed,
-                        "map_digest": grid_map.digest,
-                        "landing_cells": int(grid_map.landing.sum()),
-                        "policy": name,
-                        "backend": r.backend,
-                        **{k: summary[k] for k in _NUMBERS},
-                        "seconds": seconds,
-                        "example": example_episode(r, example_budget(own)),
-                        "conditions": r.conditions,
-                    }
-                )
-                bar.update()
+    tasks = [
+        RowTask(name, policy, grid_map, seed, config, budgets[max(grid_map.shape)], backend,
+                physics)
+        for name, policy in policies
+        for grid_map, seed, config in zip(maps, seeds, configs, strict=True)
+    ]  # fmt: skip
+    with tqdm(total=len(tasks), desc=result.name, unit="run", disable=not progress) as bar:
+        result.rows = fly_rows(tasks, map_workers, checkpoint, on_row=bar.update)
     return result

@@ -1,0 +1,115 @@
+"""A map set's rows flown here and over worker processes agree; the checkpoint resumes an
+interrupted flight with the rows it holds, and only with rows of the very same flight."""
+
+import json
+
+import numpy as np
+import pytest
+
+from cpp_mujoco.agent import load_agent
+from cpp_mujoco.cli.main import main
+from cpp_mujoco.map_sets.sets import load_map_set, map_set_spec
+from cpp_mujoco.map_sets.size_classes import size_config
+from cpp_mujoco.planners import make_planner
+from cpp_mujoco.protocol import map_set_rows
+from cpp_mujoco.protocol.map_set_rows import RowTask, fly_rows
+
+BUDGETS = [25, 50, 75]
+
+
+class Exploding:
+    """A policy that fails on its first action (module level: a spawned worker unpickles it)."""
+
+    name = "exploding"
+
+    def act(self, obs):
+        raise RuntimeError("the policy broke")
+
+
+def tasks(policies, maps):
+    spec = map_set_spec("heldout16-v1")
+    config = size_config(16)
+    return [
+        RowTask(name, policy, m, seed, config, BUDGETS)
+        for name, policy in policies
+        for m, seed in zip(maps, spec.seeds, strict=False)
+    ]
+
+
+def without_seconds(rows):
+    return [{k: v for k, v in r.items() if k != "seconds"} for r in rows]
+
+
+@pytest.fixture(scope="module")
+def maps():
+    return load_map_set("heldout16-v1", first=3)
+
+
+def test_rows_over_workers_equal_the_rows_flown_here(maps):
+    policies = [("safe-greedy", make_planner("safe-greedy")), ("general", load_agent("general"))]
+    here = fly_rows(tasks(policies, maps))
+    over = fly_rows(tasks(policies, maps), workers=2)
+    assert without_seconds(over) == without_seconds(here)
+    assert [(r["policy"], r["map_digest"]) for r in over] == [
+        (n, m.digest) for n, _ in policies for m in maps
+    ]
+    assert all(r["episodes"] == 3 * m.landing.sum() for r, m in zip(here, maps * 2, strict=True))
+
+
+def test_an_interrupted_flight_resumes_from_its_checkpoint(maps, tmp_path, monkeypatch):
+    path = tmp_path / "rows.json"
+    policies = [("safe-greedy", make_planner("safe-greedy"))]
+    whole = fly_rows(tasks(policies, maps))
+    flown = []
+    real = map_set_rows.fly_row
+
+    def fails_on_the_second(task):
+        if len(flown) == 1:
+            raise OSError("disk full")
+        flown.append(task.grid_map.digest)
+        return real(task)
+
+    monkeypatch.setattr(map_set_rows, "fly_row", fails_on_the_second)
+    with pytest.raises(OSError, match="disk full"):
+        fly_rows(tasks(policies, maps), checkpoint=path)
+    assert len(json.loads(path.read_text())["rows"]) == 1  # the first row landed and stays
+    monkeypatch.setattr(map_set_rows, "fly_row", lambda t: flown.append(t) or real(t))
+    flown.clear()
+    resumed = fly_rows(tasks(policies, maps), checkpoint=path)
+    assert [t.grid_map.digest for t in flown] == [m.digest for m in maps[1:]]  # not the first
+    assert without_seconds(resumed) == without_seconds(whole)
+    flown.clear()  # another policy is another flight: nothing of the checkpoint is reused,
+    other = [("beam-search", make_planner("beam-search"))]  # and the earlier rows are kept
+    fly_rows(tasks(other, maps[:1]), checkpoint=path)
+    assert len(flown) == 1 and len(json.loads(path.read_text())["rows"]) == 4
+
+
+def test_a_failing_worker_ends_the_flight_naming_the_map(maps):
+    with pytest.raises(RuntimeError, match="the policy broke") as info:
+        fly_rows(tasks([("exploding", Exploding())], maps[:2]), workers=2)
+    assert any("on map gen16-s100000" in note for note in info.value.__notes__)
+
+
+@pytest.mark.parametrize("text", ["{not json", '{"rows": {}}', '["rows"]'])
+def test_a_broken_checkpoint_is_a_clear_error_and_stays(maps, tmp_path, text):
+    path = tmp_path / "rows.json"
+    path.write_text(text)
+    with pytest.raises(ValueError, match="unreadable checkpoint .* move it away"):
+        fly_rows(tasks([("safe-greedy", make_planner("safe-greedy"))], maps[:1]), checkpoint=path)
+    assert path.read_text() == text
+
+
+def test_the_cli_flies_a_set_over_workers_and_removes_its_checkpoint(tmp_path, capsys):
+    argv = ["evaluate", "--map-set", "heldout16-v1", "--first", "2", "--planner", "safe-greedy"]
+    argv += ["--budget-step", "25"]
+    assert main([*argv, "--out", str(tmp_path / "here")]) == 0
+    assert main([*argv, "--workers", "2", "--out", str(tmp_path / "over")]) == 0
+    assert "resuming" not in capsys.readouterr().out
+    here, over = (
+        json.loads((tmp_path / d / "grid_heldout16-v1_first2.json").read_text())
+        for d in ("here", "over")
+    )  # fmt: skip
+    assert without_seconds(over["rows"]) == without_seconds(here["rows"])
+    assert not list((tmp_path / "over").glob("*.rows.json"))
+    mean = np.mean([r["coverage_ratio"] for r in over["rows"]])
+    assert over["policies"][0]["mean_coverage_ratio"] == pytest.approx(mean)
