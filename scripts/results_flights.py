@@ -18,9 +18,10 @@
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
     python scripts/results_flights.py calibration                 # results/calibration.json
 
-then ``python scripts/results_docs.py`` rewrites the pages from them. Each file records the
-command that flew it; every result in it names its map (and digest), policy, backend and
-conditions.
+then ``python scripts/results_docs.py`` rewrites the pages from them. A map-set flight stopped
+part-way leaves its rows in results/partial/ and the same command resumes it there. Each file
+records the command that flew it; every result in it names its map (and digest), policy,
+backend and conditions.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "results"
+PARTIAL = RESULTS / "partial"  # the rows of flights stopped part-way, to resume
 COMMAND = "python scripts/results_flights.py"
 
 
@@ -95,15 +97,18 @@ def value_beam(name: str, agent: str, workers: int = 1) -> None:
 
 
 def _evaluate_set(name: str, args: list[str], result: str, workers: int) -> None:
-    """``evaluate --map-set`` into runs/flights/<result>/ (an interrupted flight resumes from
-    its checkpoint there), the result copied to results/."""
+    """``evaluate --map-set`` into runs/flights/<result>/, the result copied to results/. The
+    rows are kept in results/partial/<result>.rows.json as they land: a flight stopped part-way
+    (a long one spans several sittings) resumes from it, committed or not."""
     import shutil
 
     from cpp_mujoco.cli.main import main as cli
     from cpp_mujoco.review.results import file_part
 
-    out = ROOT / "runs" / "flights" / Path(result).stem
-    code = cli(["evaluate", "--map-set", name, *args, "--workers", str(workers), "--out", str(out)])
+    stem = Path(result).stem
+    out, checkpoint = ROOT / "runs" / "flights" / stem, PARTIAL / f"{stem}.rows.json"
+    args = [*args, "--workers", str(workers), "--checkpoint", str(checkpoint)]
+    code = cli(["evaluate", "--map-set", name, *args, "--out", str(out)])
     if code:
         raise SystemExit(code)
     shutil.copyfile(out / f"grid_{file_part(name)}.json", RESULTS / result)

@@ -113,3 +113,28 @@ def test_the_cli_flies_a_set_over_workers_and_removes_its_checkpoint(tmp_path, c
     assert not list((tmp_path / "over").glob("*.rows.json"))
     mean = np.mean([r["coverage_ratio"] for r in over["rows"]])
     assert over["policies"][0]["mean_coverage_ratio"] == pytest.approx(mean)
+
+
+def test_the_cli_resumes_from_the_checkpoint_it_is_given(tmp_path, capsys, monkeypatch):
+    argv = ["evaluate", "--map-set", "heldout16-v1", "--first", "2", "--planner", "safe-greedy"]
+    argv += ["--budget-step", "25", "--out", str(tmp_path), "--checkpoint", str(tmp_path / "c")]
+    real, calls = map_set_rows.fly_row, []
+
+    def fails_on_the_second(task):
+        calls.append(task)
+        if len(calls) == 2:
+            raise OSError("disk full")
+        return real(task)
+
+    monkeypatch.setattr(map_set_rows, "fly_row", fails_on_the_second)
+    assert main(argv) != 0
+    assert "disk full" in capsys.readouterr().err
+    assert len(json.loads((tmp_path / "c").read_text())["rows"]) == 1
+    calls.clear()
+    assert main(argv) == 0
+    assert "resuming from" in capsys.readouterr().out and len(calls) == 1  # the second map only
+    data = json.loads((tmp_path / "grid_heldout16-v1_first2.json").read_text())
+    assert [r["map"] for r in data["rows"]] == ["gen16-s1000000", "gen16-s1000001"]
+    assert not (tmp_path / "c").exists()
+    assert main(["evaluate", "--checkpoint", str(tmp_path / "c"), "--out", str(tmp_path)]) == 2
+    assert "--checkpoint needs --map-set" in capsys.readouterr().err

@@ -48,9 +48,9 @@ def cmd_evaluate(args) -> None:
         raise ValueError(
             "--grid-wind needs --map-set (bundled maps in wind: scripts/wind_sweep.py)"
         )
-    if args.map_set or args.first:
+    if args.map_set or args.first or args.checkpoint:
         if not args.map_set:
-            raise ValueError("--first needs --map-set")
+            raise ValueError(("--first" if args.first else "--checkpoint") + " needs --map-set")
         if args.fov_side != 3:
             raise ValueError("--fov-side: a map set is flown with its size class's camera (3)")
         cmd_evaluate_map_set(args, DEFAULT_PLANNERS, weather, runtime)

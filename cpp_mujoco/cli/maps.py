@@ -162,7 +162,7 @@ def cmd_evaluate_map_set(
     part = "" if args.first is None else f"_first{args.first}"
     backend = args.backend if wind is None else f"grid-wind{args.grid_wind:g}"  # names the wind
     stem = f"{backend}_{file_part(spec.name)}{part}"
-    checkpoint = out / f"{stem}.rows.json"  # an interrupted flight resumes from it
+    checkpoint = Path(args.checkpoint or out / f"{stem}.rows.json")  # a stopped flight resumes
     if checkpoint.exists():
         print(f"resuming from {checkpoint} (the rows of this very flight it holds are reused)")
     with runtime or nullcontext():

@@ -87,6 +87,11 @@ def add_map_set_options(p) -> None:
         "--first", type=int_at_least(1), metavar="N",
         help="with --map-set: only its first N maps, for a quick look (results say so)",
     )  # fmt: skip
+    p.add_argument(
+        "--checkpoint", metavar="FILE",
+        help="with --map-set: where the rows are kept as they land, so a stopped flight resumes "
+        "(default: <result>.rows.json in --out; removed once the result is written)",
+    )  # fmt: skip
 
 
 def add_maps(sub) -> None:
