@@ -42,6 +42,7 @@ GENERATED = f"<!-- Written by {COMMAND[1:-1]} from results/; do not edit. -->"
 
 # the headline's rows, best first: (the policy as results name it, what the row says)
 HEADLINE_ROWS = (
+    ("general+value-beam", "general agent searching with its values (`--value-beam`)"),
     ("ddqn", 'bundled per-map agent (`load_agent("A")` …)'),
     ("general", 'general agent (`load_agent("general")`)'),
     ("beam-search", "beam search planner"),
@@ -73,6 +74,7 @@ def headline(data: dict) -> str:
     rows = data["results"]
     maps = list(dict.fromkeys(r["map"] for r in rows))
     backend = shared(rows, "backend")
+    from cpp_mujoco.planners.beam_search import DEFAULT_WIDTH as WIDTH  # its name says so
     from cpp_mujoco.review.doc_tables import budget_range_text
 
     budgets = {budget_range_text(r["conditions"]) for r in rows}
@@ -107,7 +109,8 @@ def headline(data: dict) -> str:
         f"Landing / **coverage** (gap to the best missions over the same episodes, in points); "
         f"best missions: their mean coverage, the solver's proven bound, and how many episodes "
         f"are proven optimal. The paper's protocol on the {backend} backend: every landing cell "
-        f"× budgets {budgets.pop()}, the agents acting greedily ({episodes} episodes; "
+        f"× budgets {budgets.pop()}, the agents acting greedily (the value beam: a beam of {WIDTH} "
+        f"paths its Q-values rank, planned at the first step; {episodes} episodes; "
         f"map digests {digests}). "
         f"From `results/optimum_abc.json`; written by {COMMAND}.",
     ]
