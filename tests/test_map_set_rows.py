@@ -2,6 +2,7 @@
 interrupted flight with the rows it holds, and only with rows of the very same flight."""
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -24,6 +25,24 @@ class Exploding:
 
     def act(self, obs):
         raise RuntimeError("the policy broke")
+
+
+class WaitsForTheFirstRow:
+    """Safe greedy that starts only once the checkpoint holds a row: a flight over workers
+    that kept its rows only at the end would never let it."""
+
+    name = "waits"
+
+    def __init__(self, checkpoint):
+        self.checkpoint, self.planner = checkpoint, make_planner("safe-greedy")
+
+    def act(self, obs):
+        deadline = time.monotonic() + 60
+        while not self.checkpoint.exists():
+            if time.monotonic() > deadline:
+                raise RuntimeError("no row was kept while the flight went on")
+            time.sleep(0.05)
+        return self.planner.act(obs)
 
 
 def tasks(policies, maps):
@@ -82,6 +101,13 @@ def test_an_interrupted_flight_resumes_from_its_checkpoint(maps, tmp_path, monke
     other = [("beam-search", make_planner("beam-search"))]  # and the earlier rows are kept
     fly_rows(tasks(other, maps[:1]), checkpoint=path)
     assert len(flown) == 1 and len(json.loads(path.read_text())["rows"]) == 4
+
+
+def test_rows_over_workers_are_kept_as_they_land(maps, tmp_path):
+    path = tmp_path / "rows.json"
+    policies = [("safe-greedy", make_planner("safe-greedy")), ("waits", WaitsForTheFirstRow(path))]
+    rows = fly_rows(tasks(policies, maps[:1]), workers=2, checkpoint=path)
+    assert [r["policy"] for r in rows] == ["safe-greedy", "waits"]
 
 
 def test_a_failing_worker_ends_the_flight_naming_the_map(maps):

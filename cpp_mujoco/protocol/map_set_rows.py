@@ -22,7 +22,7 @@ import json
 import multiprocessing as mp
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -176,7 +176,7 @@ def _fly_over_workers(tasks, keys, todo, workers, store, on_row) -> None:
     with ProcessPoolExecutor(min(workers, len(todo)), mp.get_context("spawn")) as pool:
         running = {pool.submit(_fly_in_worker, tasks[i]): i for i in todo}
         while running:
-            done, _ = wait(running, return_when=FIRST_EXCEPTION)
+            done, _ = wait(running, return_when=FIRST_COMPLETED)  # each row kept as it lands
             for future in done:
                 i = running.pop(future)
                 error = future.exception()
