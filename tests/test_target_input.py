@@ -5,12 +5,14 @@ widened with it that flies exactly as before until training teaches it to read t
 import numpy as np
 import pytest
 import torch
+import torch.nn.functional as F
 
 from cpp_mujoco.agent import CheckpointError, load_agent
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_network import GeneralQNetwork, pad_grids
 from cpp_mujoco.agent.general_training import general_parts, initial_general_weights
 from cpp_mujoco.agent.network import observation_to_tensors
+from cpp_mujoco.agent.obstacle_input import _square
 from cpp_mujoco.agent.target_input import (
     _search_bits,
     _search_cells,
@@ -84,6 +86,14 @@ def test_the_bit_search_and_the_cell_search_agree():
         bits = _search_bits(start, free, q_row, q_col, 20)
         assert torch.equal(bits, _search_cells(start, free, q_row, q_col, 20)), w
         assert (bits == 20).any() and (bits < 20).any()  # both unreachable and found cells
+
+
+@pytest.mark.parametrize("shape, side", [((7, 16, 16), 3), ((5, 32, 32), 3), ((4, 9, 13), 5)])
+def test_the_square_of_unseen_cells_is_the_max_pool_it_replaces(shape, side):
+    unseen = torch.as_tensor(np.random.default_rng(side).random(shape) < 0.08)
+    pool = F.max_pool2d(unseen[:, None].float(), side, stride=1, padding=side // 2)[:, 0] > 0
+    got = _square(unseen, side)
+    assert torch.equal(got, pool) and got.any() and not got.all()
 
 
 def test_a_widened_network_flies_as_before_and_the_option_is_checked(tmp_path):

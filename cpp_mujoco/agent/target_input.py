@@ -83,6 +83,8 @@ def _search_bits(
     for step in range(cap):
         hit = ((reached[rows, q_row] >> q_col) & 1).bool()
         found = torch.where(hit & (found == cap), step, found)
+        if bool((found < cap).all()):  # every asked cell reached: the rest changes nothing
+            break
         grown = reached | (reached << 1) | (reached >> 1)
         grown[:, 1:] |= reached[:, :-1]
         grown[:, :-1] |= reached[:, 1:]
@@ -99,7 +101,10 @@ def _search_cells(
     """:func:`_search_bits` for maps wider than a word: the same search, a float per cell."""
     far = float(cap)
     dist = torch.where(start, 0.0, far)
+    rows = torch.arange(start.shape[0], device=start.device)[:, None]
     for _ in range(cap):
+        if bool((dist[rows, q_row, q_col] < far).all()):  # a cell's first distance is its last
+            break
         padded = F.pad(dist, (1, 1, 1, 1), value=far)
         nearest = torch.minimum(
             torch.minimum(padded[:, :-2, 1:-1], padded[:, 2:, 1:-1]),
@@ -109,7 +114,6 @@ def _search_cells(
         if torch.equal(new, dist):
             break
         dist = new
-    rows = torch.arange(start.shape[0], device=start.device)[:, None]
     return dist[rows, q_row, q_col].long()
 
 
