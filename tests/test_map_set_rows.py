@@ -3,13 +3,14 @@ interrupted flight with the rows it holds, and only with rows of the very same f
 
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.cli.main import main
-from cpp_mujoco.map_sets.sets import load_map_set, map_set_spec
+from cpp_mujoco.map_sets.sets import load_map_set, map_set_names, map_set_spec
 from cpp_mujoco.map_sets.size_classes import size_config
 from cpp_mujoco.planners import make_planner
 from cpp_mujoco.protocol import map_set_rows
@@ -164,3 +165,18 @@ def test_the_cli_resumes_from_the_checkpoint_it_is_given(tmp_path, capsys, monke
     assert not (tmp_path / "c").exists()
     assert main(["evaluate", "--checkpoint", str(tmp_path / "c"), "--out", str(tmp_path)]) == 2
     assert "--checkpoint needs --map-set" in capsys.readouterr().err
+
+
+PARTIAL = Path(__file__).resolve().parent.parent / "results" / "partial"
+
+
+@pytest.mark.parametrize(
+    "path", sorted(PARTIAL.glob("*.rows.json")), ids=lambda p: p.name.removesuffix(".rows.json")
+)
+def test_a_committed_partial_flight_holds_rows_of_its_own_set(path):
+    """results/partial/<family>_<set>.rows.json: what `results_flights.py` resumes from."""
+    rows = map_set_rows.Checkpoint(path).rows
+    name = path.name.removesuffix(".rows.json")
+    spec = next(map_set_spec(s) for s in map_set_names() if name.endswith("_" + s))
+    assert rows and all(r["map_digest"] in spec.digests for r in rows.values())
+    assert all(r["backend"] == "grid" and r["landing_ratio"] >= 0 for r in rows.values())
