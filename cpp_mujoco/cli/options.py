@@ -182,8 +182,8 @@ def weather_options(args) -> dict:
 def add_workers_option(p) -> None:
     p.add_argument(
         "--workers", type=int_at_least(1), default=None,
-        help="MuJoCo: episode worker processes (default: all cores); a map set on the grid: "
-        "processes flying its maps side by side (default: one, this process)",
+        help="worker processes: in MuJoCo the episodes' (default: all cores); for a map set on "
+        "the grid its maps', flown side by side (there one, this process, unless given)",
     )  # fmt: skip
 
 
