@@ -159,14 +159,13 @@ def fly_rows(
     store = Checkpoint(checkpoint)
     keys = [t.key() for t in tasks]
     todo = [i for i, k in enumerate(keys) if k not in store.rows]
+    on_row = on_row or (lambda: None)
     for _ in range(len(tasks) - len(todo)):
-        if on_row:
-            on_row()
+        on_row()
     if workers is None or workers == 1 or len(todo) <= 1:
         for i in todo:
             store.put(keys[i], fly_row(tasks[i]))
-            if on_row:
-                on_row()
+            on_row()
     else:
         _fly_over_workers(tasks, keys, todo, workers, store, on_row)
     return [store.rows[k] for k in keys]
@@ -186,5 +185,4 @@ def _fly_over_workers(tasks, keys, todo, workers, store, on_row) -> None:
                     error.add_note(f"flying {tasks[i].name} on map {tasks[i].grid_map.label}")
                     raise error
                 store.put(keys[i], future.result())
-                if on_row:
-                    on_row()
+                on_row()
