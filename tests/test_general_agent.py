@@ -9,16 +9,12 @@ import torch
 import torch.nn.functional as F
 
 from cpp_mujoco.agent import CheckpointError, MapSizeError, load_agent
+from cpp_mujoco.agent.centred_views import _centre_gather, centre_on_uav, centred_views
 from cpp_mujoco.agent.checkpoint import atomic_save, load_checkpoint
 from cpp_mujoco.agent.config import TrainConfig
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_eval import validate
-from cpp_mujoco.agent.general_network import (
-    GeneralQNetwork,
-    _centre_gather,
-    centre_on_uav,
-    centred_views,
-)
+from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.general_training import check_general_resumable
 from cpp_mujoco.agent.map_pool import MapPool
 from cpp_mujoco.agent.map_training import check_resumable

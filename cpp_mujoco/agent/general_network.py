@@ -17,7 +17,8 @@ three dense layers of 256 and the 5 Q-values. Every tensor after the centring ha
 shape, so one set of weights flies every map size; and because the canvas has a fixed side for
 all maps up to ``max_side``, a map padded with no-fly cells gives exactly the Q-values of the
 map itself — a mixed 16/32 minibatch is padded to 32×32 and stacked (:func:`pad_grids`). The
-views are computed from the map without building the canvas (:func:`centred_views`). With
+views are computed from the map without building the canvas
+(:mod:`~cpp_mujoco.agent.centred_views`). With
 ``obstacle_input`` the grid has a sixth channel, the obstacle layer
 (:mod:`~cpp_mujoco.agent.obstacle_input`), zero outside the map and on the padding like every
 channel but no-fly.
@@ -29,14 +30,12 @@ context through depth, where the global view hands it over directly).
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 import torch
-import torch.nn.functional as F
 from torch import nn
 
-from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL, POSITION_CHANNEL, dense_head
+from cpp_mujoco.agent.centred_views import MapViewCache
+from cpp_mujoco.agent.network import IN_CHANNELS, NFZ_CHANNEL, dense_head
 from cpp_mujoco.agent.target_input import NUM_FEATURES as TARGET_FEATURES
 from cpp_mujoco.agent.target_input import moves_to_unseen
 
@@ -113,18 +112,22 @@ class GeneralQNetwork(nn.Module):
         self.features_before_target = features + self.num_scalars
         extra = TARGET_FEATURES if self.target_input else 0
         self.head = dense_head(self.features_before_target + extra, hidden, num_hidden)
+        self.view_cache: MapViewCache | None = None  # the last map's views (not weights)
 
     def input_cells(self, shape: tuple[int, int]) -> int:
         """Cells of the canvas an H×W map is centred on (a bound on what a forward pass holds
-        per row; :func:`centred_views` holds less)."""
+        per row; the views hold less)."""
         return (2 * max(self.max_side, *shape) - 1) ** 2
 
     def views(self, grid: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(local (B,5,l,l), global (B,5,g,g)) views of the map centred on the UAV: the crop
-        and the average pool of :func:`centre_on_uav`'s canvas, without building the canvas
-        (:func:`centred_views`)."""
+        and the average pool of :func:`~cpp_mujoco.agent.centred_views.centre_on_uav`'s
+        canvas, without building the canvas; a batch on one map reads its map's layers from
+        a per-cell table (:class:`~cpp_mujoco.agent.centred_views.MapViewCache`)."""
         side = max(self.max_side, *grid.shape[-2:])
-        return centred_views(grid, side, self.local_size, self.global_size)
+        if self.view_cache is None or self.view_cache.sizes[0] != side:
+            self.view_cache = MapViewCache(side, self.local_size, self.global_size)
+        return self.view_cache.views(grid)
 
     def forward(self, grid: torch.Tensor, scalars: torch.Tensor) -> torch.Tensor:
         local, global_ = self.views(grid)
@@ -145,99 +148,6 @@ def _conv_pair(channels: int, filters: int, kernel_size: int) -> nn.Sequential:
         nn.Conv2d(filters, filters, kernel_size),
         nn.ReLU(),
     )
-
-
-def centre_on_uav(grid: torch.Tensor, side: int) -> torch.Tensor:
-    """(B,5,H,W) → (B,5,2·side−1,2·side−1), the UAV (the one-hot position channel) in the
-    middle; outside the map is no-fly (ones in the no-fly channel, zeros elsewhere).
-
-    The definition of the network's views; :func:`centred_views` computes them without the
-    canvas and is tested against it. On the CPU each map is pasted into its canvas, on a GPU
-    one gather avoids B kernel launches."""
-    b, _, h, w = grid.shape
-    if side < max(h, w):
-        raise ValueError(f"canvas side {side} is smaller than the {h}x{w} map")
-    flat = grid[:, POSITION_CHANNEL].reshape(b, -1).argmax(dim=1)
-    if grid.device.type != "cpu":
-        return _centre_gather(grid, side, flat // w, flat % w)
-    canvas = grid.new_zeros((b, grid.shape[1], 2 * side - 1, 2 * side - 1))
-    canvas[:, NFZ_CHANNEL] = 1.0
-    for i, cell in enumerate(flat.tolist()):
-        top, left = side - 1 - cell // w, side - 1 - cell % w
-        canvas[i, :, top : top + h, left : left + w] = grid[i]
-    return canvas
-
-
-def _centre_gather(grid: torch.Tensor, side: int, row: torch.Tensor, col: torch.Tensor):
-    """:func:`centre_on_uav` as one batched gather from the no-fly-padded maps."""
-    p = side - 1
-    padded = F.pad(grid, (p, p, p, p), value=0.0)
-    padded[:, NFZ_CHANNEL] = F.pad(grid[:, NFZ_CHANNEL], (p, p, p, p), value=1.0)
-    span = torch.arange(2 * side - 1, device=grid.device)
-    rows = (row[:, None] + span)[:, :, None]  # padded row of canvas row i: row + i
-    cols = (col[:, None] + span)[:, None, :]
-    batch = torch.arange(grid.shape[0], device=grid.device)[:, None, None]
-    return padded.permute(0, 2, 3, 1)[batch, rows, cols].permute(0, 3, 1, 2)
-
-
-def centred_views(
-    grid: torch.Tensor, side: int, local_size: int, global_size: int
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """The centre ``local_size``² crop and the ``global_size``² adaptive average pool of
-    ``centre_on_uav(grid, side)``, computed from the map itself: each view is R · map · Cᵀ per
-    channel, R and C the 0/1 matrices of which map rows and columns fall into each view cell
-    (looked up by the UAV's row and column), plus the no-fly cells outside the map.
-
-    Why: the (B,5,63,63) canvas costs a per-sample paste loop and a pool over 10 MB for 128
-    rows; the few small batched matmuls read only the maps. The crop is exact; the pool sums
-    the same cells (exact for 0/1 inputs) and divides as ``adaptive_avg_pool2d`` does."""
-    b, _, h, w = grid.shape
-    if side < max(h, w):
-        raise ValueError(f"canvas side {side} is smaller than the {h}x{w} map")
-    flat = grid[:, POSITION_CHANNEL].reshape(b, -1).argmax(dim=1)
-    row, col = flat // w, flat % w
-    rows = _selection(h, side, local_size, global_size, grid.device, grid.dtype)
-    cols = rows if w == h else _selection(w, side, local_size, global_size, grid.device, grid.dtype)
-    (rg, rl, rg_in, rl_in, counts), (cg, cl, cg_in, cl_in, _) = rows, cols
-    glob = _sandwich(rg[row], grid, cg[col])
-    area = counts[:, None] * counts[None, :]
-    glob[:, NFZ_CHANNEL] += area - rg_in[row][:, :, None] * cg_in[col][:, None, :]
-    glob = glob / counts[:, None] / counts[None, :]  # as adaptive_avg_pool2d: / kh / kw
-    local = _sandwich(rl[row], grid, cl[col])
-    local[:, NFZ_CHANNEL] += 1.0 - rl_in[row][:, :, None] * cl_in[col][:, None, :]
-    return local, glob
-
-
-def _sandwich(r: torch.Tensor, grid: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
-    """r (B,m,H) · grid (B,K,H,W) · cᵀ (B,W,n) per channel → (B,K,m,n), as two plain bmm. The
-    result is laid out channels-last: the convolutions run faster on it (measured 10–20 %
-    forward, 8–10 % backward)."""
-    b, k, h, w = grid.shape
-    x = torch.bmm(grid.reshape(b, k * h, w), c.transpose(1, 2))  # (B, K·H, n)
-    n = x.shape[-1]
-    x = x.view(b, k, h, n).permute(0, 2, 3, 1).reshape(b, h, n * k)  # (B, H, n·K)
-    y = torch.bmm(r, x)  # (B, m, n·K)
-    return y.view(b, -1, n, k).permute(0, 3, 1, 2)
-
-
-@lru_cache(maxsize=32)
-def _selection(
-    n: int, side: int, local_size: int, global_size: int, device: torch.device, dtype: torch.dtype
-) -> tuple[torch.Tensor, ...]:
-    """For an n-cell map axis, indexed by the UAV's cell p: which map cells fall into each
-    global cell (p, g, n) and each local cell (p, l, n), how many (p, g) and (p, l); and the
-    canvas cells of each global cell (g,). The map's cell y lies on canvas cell y + side−1−p."""
-    length = 2 * side - 1
-    out = torch.arange(global_size)
-    start = out * length // global_size  # adaptive_avg_pool2d's windows
-    end = -(-(out + 1) * length // global_size)
-    p = torch.arange(n)[:, None, None]
-    canvas = torch.arange(n)[None, None, :] + side - 1 - p  # (p, 1, n)
-    glob = (canvas >= start[None, :, None]) & (canvas < end[None, :, None])
-    half = local_size // 2
-    local = torch.arange(n)[None, None, :] == p - half + torch.arange(local_size)[None, :, None]
-    tables = (glob, local, glob.sum(-1), local.sum(-1), end - start)
-    return tuple(t.to(device=device, dtype=dtype) for t in tables)
 
 
 def pad_grids(grid: np.ndarray, side: int) -> np.ndarray:
