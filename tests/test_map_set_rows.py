@@ -111,9 +111,10 @@ def test_rows_over_workers_are_kept_as_they_land(maps, tmp_path):
     assert [r["policy"] for r in rows] == ["safe-greedy", "waits"]
 
 
-def test_a_failing_worker_ends_the_flight_naming_the_map(maps):
+@pytest.mark.parametrize("workers", [None, 2])
+def test_a_failing_flight_ends_naming_the_map(maps, workers):
     with pytest.raises(RuntimeError, match="the policy broke") as info:
-        fly_rows(tasks([("exploding", Exploding())], maps[:2]), workers=2)
+        fly_rows(tasks([("exploding", Exploding())], maps[:2]), workers=workers)
     assert any("on map gen16-s100000" in note for note in info.value.__notes__)
 
 

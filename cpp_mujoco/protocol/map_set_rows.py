@@ -164,11 +164,21 @@ def fly_rows(
         on_row()
     if workers is None or workers == 1 or len(todo) <= 1:
         for i in todo:
-            store.put(keys[i], fly_row(tasks[i]))
+            try:
+                row = fly_row(tasks[i])
+            except Exception as error:
+                error.add_note(_where(tasks[i]))
+                raise
+            store.put(keys[i], row)
             on_row()
     else:
         _fly_over_workers(tasks, keys, todo, workers, store, on_row)
     return [store.rows[k] for k in keys]
+
+
+def _where(task: RowTask) -> str:
+    """The note a failed row's error carries: which policy on which map."""
+    return f"flying {task.name} on map {task.grid_map.label}"
 
 
 def _fly_over_workers(tasks, keys, todo, workers, store, on_row) -> None:
@@ -182,7 +192,7 @@ def _fly_over_workers(tasks, keys, todo, workers, store, on_row) -> None:
                 if error is not None:
                     for other in running:
                         other.cancel()
-                    error.add_note(f"flying {tasks[i].name} on map {tasks[i].grid_map.label}")
+                    error.add_note(_where(tasks[i]))
                     raise error
                 store.put(keys[i], future.result())
                 on_row()
