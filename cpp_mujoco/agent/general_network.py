@@ -130,14 +130,23 @@ class GeneralQNetwork(nn.Module):
         return self.view_cache.views(grid)
 
     def forward(self, grid: torch.Tensor, scalars: torch.Tensor) -> torch.Tensor:
+        return self.q_from_features(self.features(grid), scalars)
+
+    def features(self, grid: torch.Tensor) -> torch.Tensor:
+        """(B, F): what the network reads of the grid alone — both views through their
+        convolutions, then the moves to new targets (with ``target_input``). Rows with the same
+        grid share them whatever their scalars (:mod:`~cpp_mujoco.agent.shared_features`)."""
         local, global_ = self.views(grid)
-        parts = [
-            self.local_conv(local).flatten(1),
-            self.global_conv(global_).flatten(1),
-            scalars.reshape(-1, self.num_scalars),
-        ]
+        parts = [self.local_conv(local).flatten(1), self.global_conv(global_).flatten(1)]
         if self.target_input:
             parts.append(moves_to_unseen(grid, 2 * self.max_side))
+        return torch.cat(parts, dim=1)
+
+    def q_from_features(self, features: torch.Tensor, scalars: torch.Tensor) -> torch.Tensor:
+        """The Q-values from :meth:`features` and the scalar inputs: the dense head reads the
+        convolutions' features, the scalars, then the moves to new targets."""
+        conv = features.shape[1] - (TARGET_FEATURES if self.target_input else 0)
+        parts = [features[:, :conv], scalars.reshape(-1, self.num_scalars), features[:, conv:]]
         return self.head(torch.cat(parts, dim=1))
 
 

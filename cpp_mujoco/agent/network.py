@@ -168,8 +168,21 @@ def observation_to_tensors(
         else:
             parts.append(np.broadcast_to(np.asarray(obstacle), coverage.shape)[:, None])
     grid = np.concatenate(parts, axis=1, dtype=np.float32)
+    scalars = observation_scalars(obs, budget_scale, device, wind_inputs, home_input)
+    return torch.from_numpy(grid).to(device), scalars
+
+
+def observation_scalars(
+    obs: dict[str, np.ndarray],
+    budget_scale: float,
+    device: torch.device | str = "cpu",
+    wind_inputs: bool = False,
+    home_input: bool = False,
+) -> torch.Tensor:
+    """The scalars of :func:`observation_to_tensors` alone (:func:`scalar_inputs`)."""
+    n = np.shape(obs["coverage"])[0]
     wind = obs.get("wind", np.zeros((n, 2), dtype=np.float32)) if wind_inputs else None
     home = moves_home(obs["map"], obs["position"]) if home_input else None
     budget = np.reshape(obs["budget"], (n, 1))
     scalars = scalar_inputs(budget, wind, budget_scale, wind_inputs, home)
-    return torch.from_numpy(grid).to(device), torch.from_numpy(scalars).to(device)
+    return torch.from_numpy(scalars).to(device)

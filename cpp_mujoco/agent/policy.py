@@ -25,6 +25,7 @@ from cpp_mujoco.agent.rules.symmetric_q import (
     SymmetricQUnseen,
     own_orientation_maps,
 )
+from cpp_mujoco.agent.shared_features import batch_rows, shared_q_values
 from cpp_mujoco.grid.actions import NUM_ACTIONS
 from cpp_mujoco.grid.way_home import ReturnMargin
 from cpp_mujoco.maps import GridMap
@@ -98,7 +99,7 @@ class GreedyAgent:
         """The network's Q-values (N, 5) for a batch of observations. ``rows``: only those rows
         are read (the others are 0): a row's Q-values do not depend on its batch."""
         if rows is not None:
-            part = {k: _rows(k, v, 0, None, rows) for k, v in obs.items()}
+            part = {k: batch_rows(k, v, 0, None, rows) for k, v in obs.items()}
             q = np.zeros((int(np.shape(obs["coverage"])[0]), NUM_ACTIONS), dtype=np.float32)
             q[rows] = self.network_q_values(part)
             return q
@@ -121,9 +122,12 @@ class GreedyAgent:
         n = int(np.shape(obs["coverage"])[0])
         cells = shape[0] * shape[1] if self.map_shape else self.network.input_cells(shape)
         step = max(1, FORWARD_CELLS // cells)  # bounds the activations' memory
+        shared = shared_q_values(self, obs, step)  # a batch on one map: each grid read once
+        if shared is not None:
+            return shared
         parts = []
         for lo in range(0, max(n, 1), step):
-            part = {k: _rows(k, v, lo, lo + step) for k, v in obs.items()}
+            part = {k: batch_rows(k, v, lo, lo + step) for k, v in obs.items()}
             net = self.network
             grid, scalars = observation_to_tensors(
                 part, self.budget_scale, self.device, net.wind_inputs, net.home_input,
@@ -224,12 +228,3 @@ class GreedyAgent:
                 f"agent {self.name!r} is greedy (argmax Q); deterministic=False is not available"
             )
         return np.asarray(self.act(observation)), None
-
-
-def _rows(key: str, value, lo: int, hi: int | None, rows: np.ndarray | None = None) -> np.ndarray:
-    """Rows lo:hi (or ``rows``) of a batched array; a map shared by the batch ((3, H, W), its
-    obstacle layer (H, W)) stays whole."""
-    value = np.asarray(value)
-    if (key == "map" and value.ndim == 3) or (key == "obstacle" and value.ndim == 2):
-        return value
-    return value[rows] if rows is not None else value[lo:hi]
