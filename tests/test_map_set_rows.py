@@ -2,6 +2,9 @@
 interrupted flight with the rows it holds, and only with rows of the very same flight."""
 
 import json
+import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -44,6 +47,19 @@ class WaitsForTheFirstRow:
                 raise RuntimeError("no row was kept while the flight went on")
             time.sleep(0.05)
         return self.planner.act(obs)
+
+
+class SleepsLong:
+    """A policy whose first action takes ten minutes, after marking that it started."""
+
+    name = "sleeps"
+
+    def __init__(self, marker):
+        self.marker = marker
+
+    def act(self, obs):
+        self.marker.write_text("started")
+        time.sleep(600)
 
 
 def tasks(policies, maps):
@@ -116,6 +132,35 @@ def test_a_failing_flight_ends_naming_the_map(maps, workers):
     with pytest.raises(RuntimeError, match="the policy broke") as info:
         fly_rows(tasks([("exploding", Exploding())], maps[:2]), workers=workers)
     assert any("on map gen16-s100000" in note for note in info.value.__notes__)
+
+
+INTERRUPTED_FLIGHT = """
+import sys
+from pathlib import Path
+from cpp_mujoco.map_sets.sets import load_map_set
+from cpp_mujoco.protocol.map_set_rows import fly_rows
+from cpp_mujoco.util.signals import interruptible
+from tests.test_map_set_rows import SleepsLong, tasks
+marker = Path(sys.argv[1])
+with interruptible():
+    fly_rows(tasks([("sleeps", SleepsLong(marker))], load_map_set("heldout16-v1", first=2)), 2)
+"""
+
+
+def test_an_interrupted_flight_over_workers_stops_them_at_once(tmp_path):
+    marker = tmp_path / "started"
+    root = Path(__file__).resolve().parent.parent
+    flight = subprocess.Popen([sys.executable, "-c", INTERRUPTED_FLIGHT, str(marker)], cwd=root)
+    try:
+        deadline = time.monotonic() + 120
+        while not marker.exists() and flight.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert marker.exists(), "the workers never started"
+        flight.send_signal(signal.SIGTERM)
+        code = flight.wait(timeout=60)  # not the ten minutes the rows in flight would take
+    finally:
+        flight.kill()
+    assert code != 0
 
 
 @pytest.mark.parametrize("text", ["{not json", '{"rows": {}}', '["rows"]'])

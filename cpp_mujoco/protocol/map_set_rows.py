@@ -7,7 +7,8 @@ held-out set tens of thousands of episodes; the maps are independent, so ``worke
 fly them side by side (spawned: torch's threads do not survive a fork; one torch thread each). The
 rows come back in the serial order, equal to a serial flight's but for their wall ``seconds``
 (``tests/test_map_set_rows.py``). A worker's exception ends the flight with it, naming the policy
-and map; rows already landed stay in the checkpoint.
+and map, and an interrupt (Ctrl-C, SIGTERM) ends it at once: the workers are stopped, not
+waited for; rows already landed stay in the checkpoint.
 
 The checkpoint (a JSON file the caller names) maps each row's key — the policy's name and
 identity, the map's digest and seed, the budgets, backend, config and physics options — to
@@ -182,7 +183,8 @@ def _where(task: RowTask) -> str:
 
 
 def _fly_over_workers(tasks, keys, todo, workers, store, on_row) -> None:
-    with ProcessPoolExecutor(min(workers, len(todo)), mp.get_context("spawn")) as pool:
+    pool = ProcessPoolExecutor(min(workers, len(todo)), mp.get_context("spawn"))
+    try:
         running = {pool.submit(_fly_in_worker, tasks[i]): i for i in todo}
         while running:
             done, _ = wait(running, return_when=FIRST_COMPLETED)  # each row kept as it lands
@@ -190,9 +192,23 @@ def _fly_over_workers(tasks, keys, todo, workers, store, on_row) -> None:
                 i = running.pop(future)
                 error = future.exception()
                 if error is not None:
-                    for other in running:
-                        other.cancel()
                     error.add_note(_where(tasks[i]))
                     raise error
                 store.put(keys[i], future.result())
                 on_row()
+    except BaseException:
+        _stop_workers(pool)  # an error or an interrupt: the rows in flight are lost, not waited for
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Ends the pool's workers now: a row takes minutes, and an interrupted flight must not
+    wait for the rows in flight (the landed ones are in the checkpoint)."""
+    terminate = getattr(pool, "terminate_workers", None)  # Python 3.14
+    if terminate is not None:
+        terminate()
+        return
+    for process in list((pool._processes or {}).values()):  # before 3.14: no public way
+        process.terminate()
