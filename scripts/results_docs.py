@@ -166,7 +166,7 @@ def optimum_page() -> str:
 
 def map_set_page(paths: list[Path]) -> str:
     """The held-out sets' page: the truth table, then each set's full-protocol table."""
-    from cpp_mujoco.review.truth_table import map_set_page as page
+    from cpp_mujoco.review.map_set_page import map_set_page as page
 
     entries = []
     for path in paths:

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
+from cpp_mujoco.review.map_set_page import map_set_page
 from cpp_mujoco.review.truth_table import (
     VALUE_BEAM_FILE,
     agent_policy,
     bundled_row,
-    map_set_page,
     network_row,
     symmetric_q_row,
     symmetric_q_table,
@@ -52,8 +52,9 @@ def test_row_holds_each_column_and_the_sample_gaps():
     assert cells[3] == f"{bundled_row(data)['mean_coverage_ratio']:.2%} · 100.00%"
     beam = optimum["policies"]["beam-search"]["coverage"]
     proven = optimum["statuses"]["optimal"]
-    assert cells[6] == f"+{(optimum['best_found'] - beam) * 100:.2f} pt ({proven}/120 proven)"
-    assert cells[7] == f"+{(optimum['bound'] - beam) * 100:.2f} pt"
+    assert cells[4] == "—"  # no value-beam file given
+    assert cells[7] == f"+{(optimum['best_found'] - beam) * 100:.2f} pt ({proven}/120 proven)"
+    assert cells[8] == f"+{(optimum['bound'] - beam) * 100:.2f} pt"
 
 
 def test_missing_columns_are_dashes_not_numbers():
@@ -61,7 +62,7 @@ def test_missing_columns_are_dashes_not_numbers():
     assert bundled_row(data) is None
     (row,) = truth_table([(data, None, None)]).splitlines()[2:]
     cells = [c.strip() for c in row.strip("|").split("|")]
-    assert cells[2] == cells[3] == cells[6] == cells[7] == "—"
+    assert cells[2] == cells[3] == cells[4] == cells[7] == cells[8] == "—"
 
 
 def test_files_of_another_protocol_or_other_maps_are_refused():
@@ -231,3 +232,18 @@ def test_the_value_beam_s_whole_protocol_sits_beside_the_bundled_policy_or_is_na
     renamed["policies"][0]["policy"] = "ddqn[general-city]+value-beam"
     with pytest.raises(ValueError, match="not the set's bundled agent"):
         variant_table([(data, renamed)], VALUE_BEAM_FILE)
+
+
+def test_value_beam_column_from_its_file_and_a_dash_for_an_earlier_agent():
+    data, searching = load("map_set_heldout16-v1.json"), load("value_beam_heldout16-v1.json")
+    (line,) = truth_table([(data, None, None, searching)]).splitlines()[2:]
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    assert cells[4] == f"{VALUE_BEAM_FILE.row(searching)['mean_coverage_ratio']:.2%} · 100.00%"
+    earlier = copy.deepcopy(searching)
+    earlier["conditions"]["policy"]["digest"] = "0123456789ab"  # another agent file
+    (line,) = truth_table([(data, None, None, earlier)]).splitlines()[2:]
+    assert [c.strip() for c in line.strip("|").split("|")][4] == "—"
+    fewer = copy.deepcopy(searching)
+    fewer["conditions"]["budgets"]["step"] = 5  # another protocol
+    with pytest.raises(ValueError, match="value-beam file flew another protocol"):
+        truth_table([(data, None, None, fewer)])

@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 
-from cpp_mujoco.review.doc_tables import budget_range_text
 from cpp_mujoco.review.search_table import SEARCH_TEXT, VALUE_BEAM, search_table
 
 PLANNERS = ("safe-greedy", "beam-search")
@@ -21,7 +20,11 @@ TRUTH_TEXT = (
     "results/network_alone_SET.json). *Bundled policy*: the bundled general agent with its own "
     "rules (the return, revisit, finish and progress masks); on the city sets the city-trained "
     "`general-city`, which reads obstacles and adds symmetric Q; — where "
-    "no bundled agent fits the set. The last two "
+    "no bundled agent fits the set. *Bundled + value beam*: that policy flown through the beam "
+    "search its Q-values rank (`--value-beam`, 32 paths; one UAV's decision in "
+    "results/decision_time.json; `python scripts/results_flights.py value-beam --map-set SET`, "
+    "results/value_beam_SET.json); — where not flown with the present agent file and rules. "
+    "The last two "
     "columns come from a seeded sample of the same protocol solved by the exact planner "
     "(`scripts/optimum_sample.py`, results/optimum_SET.json): how far the best missions found "
     "and the proven bound lie above beam search's missions on those episodes, in points of "
@@ -45,7 +48,7 @@ def bundled_row(data: dict) -> dict | None:
     return rows[0] if rows else None
 
 
-def _agent_name(row: dict | None) -> str | None:
+def agent_name(row: dict | None) -> str | None:
     """The agent a ``ddqn[NAME]`` row flew (None without a row)."""
     return row and row["policy"].removeprefix("ddqn[").removesuffix("]")
 
@@ -190,84 +193,49 @@ def _same_maps(data: dict, optimum: dict) -> None:
         )
 
 
-def truth_table(entries: list[tuple[dict, dict | None, dict | None]]) -> str:
-    """One row per set from ``(map_set file, network-alone file or None, optimum sample or
-    None)``: coverage · landing over the full protocol, then the sample's gaps."""
+def truth_table(entries: list[tuple]) -> str:
+    """One row per set from ``(map_set file, network-alone file, optimum sample[, value-beam
+    file])``, each None where absent: coverage · landing over the full protocol, then the
+    sample's gaps. A value-beam file flown with an earlier agent file or rules shows as —."""
     lines = [
-        "| set | episodes | network + return rule | bundled policy | safe greedy | beam search "
-        "| best missions − beam (sample) | bound − beam (sample) |",
-        "|---|---|---|---|---|---|---|---|",
+        "| set | episodes | network + return rule | bundled policy | bundled + value beam "
+        "| safe greedy | beam search | best missions − beam (sample) | bound − beam (sample) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
-    for data, network, optimum in entries:
+    for data, network, optimum, *value_beam in entries:
         by_name = {r["policy"]: r for r in data["policies"]}
         episodes = {r["episodes"] for r in data["policies"]}
         if network is not None:
             _same_protocol(data, network)
             _same_agent(data, network_row(network), "network-alone")
             episodes.add(network_row(network)["episodes"])
+        searching = _value_beam_row(data, value_beam[0] if value_beam else None)
+        if searching is not None:
+            episodes.add(searching["episodes"])
         if optimum is not None:
             _same_maps(data, optimum)
         if len(episodes) != 1:
             raise ValueError(f"{data['map_set']['name']}: policies flew different episode counts")
         bundled = bundled_row(data)
-        label = f" ({bundled['policy']})" if _agent_name(bundled) not in (None, "general") else ""
+        label = f" ({bundled['policy']})" if agent_name(bundled) not in (None, "general") else ""
         best, bound = _sample_gaps(optimum)
         lines.append(
             f"| {data['map_set']['name']} | {episodes.pop()} | {_cell(network_row(network))} | "
-            f"{_cell(bundled)}{label} | {_cell(by_name.get(PLANNERS[0]))} | "
+            f"{_cell(bundled)}{label} | {_cell(searching)} | {_cell(by_name.get(PLANNERS[0]))} | "
             f"{_cell(by_name.get(PLANNERS[1]))} | {best} | {bound} |"
         )
     return "\n".join(lines)
 
 
-def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
-    """The held-out sets' page from ``(file name, map_set file, network-alone file, optimum
-    sample, symmetric-Q file, value-beam file)`` per set (None: none): the truth table, the
-    general agent with symmetric Q, then searching with its values, where flown, then each set's
-    policies."""
-    table = truth_table([(e[1], e[2], e[3]) for e in entries])
-    parts = [
-        generated,
-        "# Results: held-out map sets",
-        "",
-        "The paper's protocol (every landing cell × every budget of the map's size class) on every "
-        "map of a held-out set, on the grid; landing and coverage are means over the maps (each "
-        "map weighs the same), the worst map's landing beside them.",
-        "",
-        "## Every set against its limit",
-        "",
-        table,
-        "",
-        TRUTH_TEXT,
-    ]
-    parts += variant_section([(e[1], e[4]) for e in entries], SYMMETRIC_Q, SYMMETRIC_Q_TEXT)
-    parts += search_section([(e[1], e[3]) for e in entries])
-    parts += variant_section([(e[1], e[5]) for e in entries], VALUE_BEAM_FILE, VALUE_BEAM_TEXT)
-    for file_name, data, *_ in entries:
-        spec = data["map_set"]
-        agent = _agent_name(bundled_row(data))
-        option = {None: " --no-agent", "general": ""}.get(agent, f" --agent {agent}")
-        parts += [
-            "",
-            f"## {spec['name']} ({spec['evaluated']} of its {spec['count']} maps, "
-            f"{spec['size']}×{spec['size']})",
-            "",
-            "| policy | maps | episodes | landing | coverage | worst map's landing |",
-            "|---|---|---|---|---|---|",
-        ]
-        for row in data["policies"]:
-            parts.append(
-                f"| {row['policy']} | {row['maps']} | {row['episodes']} | "
-                f"{row['mean_landing_ratio']:.2%} | {row['mean_coverage_ratio']:.2%} | "
-                f"{row['min_landing_ratio']:.2%} |"
-            )
-        parts += [
-            "",
-            f"The {data['backend']} backend, budgets {budget_range_text(data)}, "
-            f"version {spec['version']} of the set. From `results/{file_name}`, flown by "
-            f"`{command} --map-set {spec['name']}{option}` (`cpp-mujoco evaluate --map-set`).",
-        ]
-    return "\n".join(parts) + "\n"
+def _value_beam_row(data: dict, value_beam: dict | None) -> dict | None:
+    """The value-beam file's row where it flew the set file's bundled agent, as it is now, over
+    the same protocol (None: no file, or one of an earlier agent)."""
+    if value_beam is None or not VALUE_BEAM_FILE.fits(data, value_beam):
+        return None
+    row = VALUE_BEAM_FILE.row(value_beam)
+    _same_protocol(data, value_beam, VALUE_BEAM_FILE.what)
+    VALUE_BEAM_FILE.same_agent(data, row)
+    return row
 
 
 SYMMETRIC_Q_TEXT = (

@@ -1,0 +1,68 @@
+"""The held-out sets' results page: the truth table, the general agent's variants where flown,
+then each set's policies (written by ``scripts/results_docs.py``)."""
+
+from __future__ import annotations
+
+from cpp_mujoco.review.doc_tables import budget_range_text
+from cpp_mujoco.review.truth_table import (
+    SYMMETRIC_Q,
+    SYMMETRIC_Q_TEXT,
+    TRUTH_TEXT,
+    VALUE_BEAM_FILE,
+    VALUE_BEAM_TEXT,
+    agent_name,
+    bundled_row,
+    search_section,
+    truth_table,
+    variant_section,
+)
+
+
+def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
+    """The held-out sets' page from ``(file name, map_set file, network-alone file, optimum
+    sample, symmetric-Q file, value-beam file)`` per set (None: none): the truth table, the
+    general agent with symmetric Q, then searching with its values, where flown, then each set's
+    policies."""
+    table = truth_table([(e[1], e[2], e[3], e[5]) for e in entries])
+    parts = [
+        generated,
+        "# Results: held-out map sets",
+        "",
+        "The paper's protocol (every landing cell × every budget of the map's size class) on every "
+        "map of a held-out set, on the grid; landing and coverage are means over the maps (each "
+        "map weighs the same), the worst map's landing beside them.",
+        "",
+        "## Every set against its limit",
+        "",
+        table,
+        "",
+        TRUTH_TEXT,
+    ]
+    parts += variant_section([(e[1], e[4]) for e in entries], SYMMETRIC_Q, SYMMETRIC_Q_TEXT)
+    parts += search_section([(e[1], e[3]) for e in entries])
+    parts += variant_section([(e[1], e[5]) for e in entries], VALUE_BEAM_FILE, VALUE_BEAM_TEXT)
+    for file_name, data, *_ in entries:
+        spec = data["map_set"]
+        agent = agent_name(bundled_row(data))
+        option = {None: " --no-agent", "general": ""}.get(agent, f" --agent {agent}")
+        parts += [
+            "",
+            f"## {spec['name']} ({spec['evaluated']} of its {spec['count']} maps, "
+            f"{spec['size']}×{spec['size']})",
+            "",
+            "| policy | maps | episodes | landing | coverage | worst map's landing |",
+            "|---|---|---|---|---|---|",
+        ]
+        for row in data["policies"]:
+            parts.append(
+                f"| {row['policy']} | {row['maps']} | {row['episodes']} | "
+                f"{row['mean_landing_ratio']:.2%} | {row['mean_coverage_ratio']:.2%} | "
+                f"{row['min_landing_ratio']:.2%} |"
+            )
+        parts += [
+            "",
+            f"The {data['backend']} backend, budgets {budget_range_text(data)}, "
+            f"version {spec['version']} of the set. From `results/{file_name}`, flown by "
+            f"`{command} --map-set {spec['name']}{option}` (`cpp-mujoco evaluate --map-set`).",
+        ]
+    return "\n".join(parts) + "\n"
