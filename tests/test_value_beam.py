@@ -5,14 +5,16 @@ import numpy as np
 import pytest
 
 from cpp_mujoco.agent import load_agent
-from cpp_mujoco.agent.value_beam import ValueBeamAgent
+from cpp_mujoco.agent.general_config import GeneralTrainConfig
+from cpp_mujoco.agent.general_training import pool_demonstrations, training_pool
+from cpp_mujoco.agent.value_beam import ValueBeamAgent, make_demonstrator
 from cpp_mujoco.cli.maps import agent_entry
 from cpp_mujoco.grid.actions import LAND, NUM_ACTIONS
 from cpp_mujoco.grid.graph import build_graph
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
 from cpp_mujoco.map_sets.sets import load_map_set
 from cpp_mujoco.planners.beam_search import _pack, _unpack, plan_paths
-from cpp_mujoco.protocol.evaluate import evaluate
+from cpp_mujoco.protocol.evaluate import evaluate, protocol_budgets
 from cpp_mujoco.protocol.policy import policy_identity
 
 
@@ -77,3 +79,21 @@ def test_results_name_the_search_its_width_and_the_agent_s_rules(general):
 def test_a_per_map_agent_searches_only_its_map():
     search = ValueBeamAgent(load_agent("A"))
     assert search.fits(load_map_set("heldout16-v1", first=1)[0]) is not None
+
+
+def test_an_agent_searching_with_its_values_teaches_a_general_run():
+    """``demo_planner="general+value-beam"``: the demonstrations are the value beam's own
+    missions (their coverage is its evaluation's on the same maps and budgets)."""
+    config = GeneralTrainConfig(
+        sizes=(16,), maps_per_size=2, demo_maps_per_size=1, demo_budget_step=25,
+        demo_planner="general+value-beam", val_maps_per_size=1,
+    )  # fmt: skip
+    pool = training_pool(config)
+    demos = pool_demonstrations(config, pool)
+    teacher = make_demonstrator("general+value-beam")
+    assert isinstance(teacher, ValueBeamAgent)
+    flown = evaluate(teacher, pool.maps[0], budgets=protocol_budgets(pool.configs[0], 25))
+    assert demos.coverage_ratio == flown.coverage_ratio and demos.landing_ratio == 1.0
+    assert make_demonstrator("beam-search").name == "beam-search"
+    with pytest.raises(ValueError, match="unknown planner"):
+        make_demonstrator("beam-searh")

@@ -89,6 +89,7 @@ class TrainConfig:
     # (landing cell, budget) pair once; demo_fraction of every minibatch is drawn from those
     # transitions, which get the TD loss and, weighted by demo_weight, the large-margin loss
     # max_a[Q(s,a) + demo_margin·(a ≠ a_E)] − Q(s,a_E). 0 = no demonstrations (the paper).
+    # A general run may name an agent searching with its values: "general+value-beam"
     demo_planner: str = "beam-search"
     demo_fraction: float = 0.5
     demo_margin: float = 0.5  # in reward units: one new target cell is worth 0.4

@@ -38,6 +38,7 @@ from cpp_mujoco.agent.obstacle_input import widen_for_obstacle_input
 from cpp_mujoco.agent.target_input import widen_for_target_input
 from cpp_mujoco.agent.training_parts import TrainingParts
 from cpp_mujoco.agent.training_state import RESUMABLE_CHANGES, changed_settings
+from cpp_mujoco.agent.value_beam import make_demonstrator
 from cpp_mujoco.maps import load_map
 from cpp_mujoco.maps.symmetry import map_images
 from cpp_mujoco.planners import make_planner
@@ -241,7 +242,7 @@ def pool_demonstrations(config: GeneralTrainConfig, pool: MapPool):
         ids = [i for i, keep in zip(ids, kept, strict=True) if keep]
         steps = [s for s, keep in zip(steps, kept, strict=True) if keep]
     return record_pool_demonstrations(
-        pool, ids, make_planner(c.demo_planner, c.wind_margin), c.n_step, c.gamma,
+        pool, ids, make_demonstrator(c.demo_planner, c.wind_margin), c.n_step, c.gamma,
         steps, c.named_demo_share, c.obstacle_input,
     )  # fmt: skip
 

@@ -20,10 +20,12 @@ from typing import Any
 
 import numpy as np
 
+from cpp_mujoco.agent import load_agent
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.grid.graph import MapGraph
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP, Rewards
 from cpp_mujoco.maps import GridMap
+from cpp_mujoco.planners import make_planner
 from cpp_mujoco.planners.beam_search import DEFAULT_WIDTH, ActionValues, BeamSearchPlanner
 
 VALUE_BEAM = "value-beam"
@@ -63,3 +65,14 @@ class ValueBeamAgent(BeamSearchPlanner):
     def identity(self) -> dict[str, Any]:
         """The agent's network and rules (those of its incumbent missions) and the beam."""
         return {**self.agent.identity(), "search": {"name": VALUE_BEAM, "width": self.width}}
+
+
+def make_demonstrator(name: str, wind_margin=None):
+    """A teacher by name: a planner (:func:`~cpp_mujoco.planners.make_planner`), or
+    ``AGENT+value-beam`` — an agent (bundled name or file) searching with its values, the
+    affordable teacher nearest the best missions (1–2 points under them on the 16×16 optimum
+    samples, where beam search is 4–5)."""
+    agent, plus, search = name.rpartition("+")
+    if plus and search == VALUE_BEAM:
+        return ValueBeamAgent(load_agent(agent))
+    return make_planner(name, wind_margin)
