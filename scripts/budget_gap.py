@@ -2,6 +2,8 @@
 validation-range maps, for the agent with and without the finish mask and for the planner.
 
     python scripts/budget_gap.py --agent general [--maps 32] [--first-seed 2000100]
+    python scripts/budget_gap.py --agent general runs/X/best.pt --rules return-mask own
+        # two agent files, each as its network alone (the return rule only) and with its rules
 
 Why: a mean over every budget hides where a gap lies. On 32 validation-range 16×16 maps the
 general agent led safe greedy at small budgets and fell behind at large ones, where it landed
@@ -37,7 +39,12 @@ def per_budget_coverage(policy, pool: MapPool, budget_step: int) -> dict[int, fl
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--agent", default="general", help="a bundled agent's name or a file")
+    p.add_argument("--agent", nargs="+", default=["general"], help="bundled agents' names or files")
+    p.add_argument(
+        "--rules", nargs="+", default=["no-finish-mask", "+finish-mask"],
+        help="each agent flown with each of these rule changes (as --rule takes them, several "
+        "joined by commas; own: the file's rules)",
+    )  # fmt: skip
     p.add_argument("--size", type=int, default=16)
     p.add_argument("--maps", type=int, default=32)
     p.add_argument("--first-seed", type=int, default=VALIDATION_SEEDS.start + 100)
@@ -47,10 +54,13 @@ def main(argv=None) -> int:
     check_seeds(args.first_seed, args.maps, "validation", VALIDATION_SEEDS)
     pool = MapPool.generate((args.size,), args.maps, args.first_seed)
     columns = {"safe-greedy": make_planner("safe-greedy")}
-    for change in ("no-finish-mask", "+finish-mask"):
-        label, agent = agent_entry(args.agent, load_agent(args.agent), [change])
-        columns[label] = agent
-    digest = agent.metadata.get("digest")
+    digests = {}
+    for spec in args.agent:
+        agent = load_agent(spec)
+        digests[spec] = agent.metadata.get("digest")
+        for change in args.rules:
+            label, policy = agent_entry(spec, agent, None if change == "own" else change.split(","))
+            columns[label] = policy
     tables = {label: per_budget_coverage(pol, pool, args.budget_step)
               for label, pol in columns.items()}  # fmt: skip
     budgets = list(tables["safe-greedy"])
@@ -59,7 +69,7 @@ def main(argv=None) -> int:
         print(f"{b:6d}  " + "  ".join(f"{100 * t[b]:33.2f}%" for t in tables.values()))
     print(json.dumps({
         "maps": f"generated {args.size}x{args.size}, seeds {seeds.start}..{seeds.stop - 1}",
-        "agent_digest": digest, "budget_step": args.budget_step, "backend": "grid",
+        "agent_digests": digests, "budget_step": args.budget_step, "backend": "grid",
         "mean": {label: float(np.mean(list(t.values()))) for label, t in tables.items()},
     }))  # fmt: skip
     return 0
