@@ -37,13 +37,13 @@ def centre_on_uav(grid: torch.Tensor, side: int) -> torch.Tensor:
     b, _, h, w = grid.shape
     if side < max(h, w):
         raise ValueError(f"canvas side {side} is smaller than the {h}x{w} map")
-    flat = grid[:, POSITION_CHANNEL].reshape(b, -1).argmax(dim=1)
+    row, col = uav_cells(grid)
     if grid.device.type != "cpu":
-        return _centre_gather(grid, side, flat // w, flat % w)
+        return _centre_gather(grid, side, row, col)
     canvas = grid.new_zeros((b, grid.shape[1], 2 * side - 1, 2 * side - 1))
     canvas[:, NFZ_CHANNEL] = 1.0
-    for i, cell in enumerate(flat.tolist()):
-        top, left = side - 1 - cell // w, side - 1 - cell % w
+    for i, (r, c) in enumerate(zip(row.tolist(), col.tolist(), strict=True)):
+        top, left = side - 1 - r, side - 1 - c
         canvas[i, :, top : top + h, left : left + w] = grid[i]
     return canvas
 
@@ -157,17 +157,21 @@ class MapViewCache:
         b, c, h, w = grid.shape
         if b < MIN_TABLE_ROWS or h * w > MAX_TABLE_CELLS or not _one_map(grid):
             return centred_views(grid, *self.sizes)
-        layers = _map_layers(grid[0])
-        old = self.layers
-        if old is None or old.shape != layers.shape or old.device != layers.device:
-            self._build(grid[:1])
-        elif old.dtype != layers.dtype or not torch.equal(old, layers):
+        if not self._holds(_map_layers(grid[0])):
             self._build(grid[:1])
         row, col = uav_cells(grid)
         coverage = grid[:, COVERAGE_CHANNEL : COVERAGE_CHANNEL + 1]
         own_local, own_glob = views_at(coverage, row, col, *self.sizes, nfz=False)
         cell = row * w + col
         return _merge(self.local, own_local, cell), _merge(self.glob, own_glob, cell)
+
+    def _holds(self, layers: torch.Tensor) -> bool:
+        """Whether the table was built for these very map layers (same device and dtype)."""
+        old = self.layers
+        same_kind = old is not None and (old.shape, old.device, old.dtype) == (
+            layers.shape, layers.device, layers.dtype,
+        )  # fmt: skip
+        return same_kind and torch.equal(old, layers)
 
     def _build(self, row: torch.Tensor) -> None:
         """The full views of ``row``'s map with the UAV in each cell (coverage: its own)."""
