@@ -42,9 +42,13 @@ GENERATED = f"<!-- Written by {COMMAND[1:-1]} from results/; do not edit. -->"
 
 # the headline's rows, best first: (the policy as results name it, what the row says)
 HEADLINE_ROWS = (
-    ("general+value-beam", "general agent searching with its values (`--value-beam`)"),
+    (
+        "general+value-beam",
+        "the bundled general policy: the general agent searching with its values "
+        "(`general+value-beam`)",
+    ),
     ("ddqn", 'bundled per-map agent (`load_agent("A")` …)'),
-    ("general", 'general agent (`load_agent("general")`)'),
+    ("general", 'general agent, network + its rules (`load_agent("general")`)'),
     ("beam-search", "beam search planner"),
     ("safe-greedy", "safe greedy planner"),
 )

@@ -7,7 +7,9 @@ import pytest
 from cpp_mujoco.agent import load_agent
 from cpp_mujoco.agent.general_config import GeneralTrainConfig
 from cpp_mujoco.agent.general_training import pool_demonstrations, training_pool
-from cpp_mujoco.agent.value_beam import ValueBeamAgent, make_demonstrator
+from cpp_mujoco.agent.policy import GreedyAgent
+from cpp_mujoco.agent.value_beam import ValueBeamAgent, load_policy, make_demonstrator, split_search
+from cpp_mujoco.cli.main import main
 from cpp_mujoco.cli.maps import agent_entry
 from cpp_mujoco.grid.actions import LAND, NUM_ACTIONS
 from cpp_mujoco.grid.graph import build_graph
@@ -74,6 +76,31 @@ def test_results_name_the_search_its_width_and_the_agent_s_rules(general):
     assert "progress_rule" in identity and identity["digest"] == general.metadata["digest"]
     label, _ = agent_entry("general", general, ["return-mask"], 32)
     assert label == "ddqn[general, rules: return-mask]+value-beam"
+
+
+def test_a_spec_names_the_agent_and_whether_it_searches(general):
+    """``general+value-beam`` is the bundled general policy: the agent ``general`` searching,
+    named so in results exactly as ``--agent general --value-beam``."""
+    assert split_search("general+value-beam") == ("general", True)
+    assert split_search("runs/x/best.pt") == ("runs/x/best.pt", False)
+    assert split_search("general+symmetric-q") == ("general+symmetric-q", False)
+    policy = load_policy("general+value-beam")
+    assert isinstance(policy, ValueBeamAgent) and policy.name == "ddqn-general+value-beam"
+    assert policy.width == 32 and policy.map_shape is None
+    assert isinstance(load_policy("general"), GreedyAgent)
+    assert load_policy("A", width=8).map_shape == load_agent("A").map_shape is not None
+    label, policy = agent_entry("general+value-beam", general, None)
+    assert label == agent_entry("general", general, None, 32)[0] == "ddqn[general]+value-beam"
+    assert policy_identity(policy)["search"] == {"name": "value-beam", "width": 32}
+
+
+def test_the_command_line_flies_the_searching_policy(tmp_path, capsys):
+    code = main(["fly", "--map", "C", "--agent", "general+value-beam", "--backend", "grid",
+                 "--budget", "40"])  # fmt: skip
+    assert code == 0 and "ddqn-general+value-beam" in capsys.readouterr().out
+    # a per-map agent searching is still that map's agent only
+    assert main(["fly", "--map", "B", "--agent", "A+value-beam", "--backend", "grid"]) == 2
+    assert "trained on map 'A'" in capsys.readouterr().err
 
 
 def test_a_per_map_agent_searches_only_its_map():

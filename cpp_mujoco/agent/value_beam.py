@@ -58,6 +58,11 @@ class ValueBeamAgent(BeamSearchPlanner):
         mdp.restore(cells, left, coverage)
         return self.agent.network_q_values(mdp.observation()) / Rewards().coverage
 
+    @property
+    def map_shape(self) -> tuple[int, int] | None:
+        """The agent's: a per-map agent's map size, None for a general agent's any size."""
+        return self.agent.map_shape
+
     def fits(self, grid_map: GridMap) -> str | None:
         """The agent's own answer: a per-map agent searches only its map."""
         return self.agent.fits(grid_map)
@@ -67,12 +72,27 @@ class ValueBeamAgent(BeamSearchPlanner):
         return {**self.agent.identity(), "search": {"name": VALUE_BEAM, "width": self.width}}
 
 
+def split_search(spec: str) -> tuple[str, bool]:
+    """``(agent spec, searches)`` of a policy spec: ``NAME+value-beam`` is agent NAME (a bundled
+    name or a file) searching with its values; anything else is an agent alone."""
+    agent, plus, search = spec.rpartition("+")
+    return (agent, True) if plus and search == VALUE_BEAM else (spec, False)
+
+
+def load_policy(spec: str, width: int | None = None) -> GreedyAgent | ValueBeamAgent:
+    """An agent by spec: ``general`` is the network with its rules, ``general+value-beam`` the
+    same agent searching with its values (the bundled general policy in calm air); ``width``
+    (paths per episode) makes any agent search."""
+    agent_spec, search = split_search(spec)
+    agent = load_agent(agent_spec)
+    return ValueBeamAgent(agent, width or DEFAULT_WIDTH) if search or width else agent
+
+
 def make_demonstrator(name: str, wind_margin=None):
     """A teacher by name: a planner (:func:`~cpp_mujoco.planners.make_planner`), or
     ``AGENT+value-beam`` — an agent (bundled name or file) searching with its values, the
     affordable teacher nearest the best missions (1–2 points under them on the 16×16 optimum
     samples, where beam search is 4–5)."""
-    agent, plus, search = name.rpartition("+")
-    if plus and search == VALUE_BEAM:
-        return ValueBeamAgent(load_agent(agent))
+    if split_search(name)[1]:
+        return load_policy(name)
     return make_planner(name, wind_margin)

@@ -56,8 +56,6 @@ def cmd_evaluate(args) -> None:
         cmd_evaluate_map_set(args, DEFAULT_PLANNERS, weather, runtime)
         return _write_page(args.out)
     grid_maps = [load_map(spec, args.cell_pixels) for spec in args.map or bundled_maps()]
-    for spec in args.agent:
-        check_agent_file(spec)
     if not args.planner and not args.agent:
         args.planner = list(DEFAULT_PLANNERS)
     policies = [
@@ -66,8 +64,14 @@ def cmd_evaluate(args) -> None:
     ]
     if args.agent:
         from cpp_mujoco.agent import load_agent  # heavy: torch, only with --agent
+        from cpp_mujoco.agent.value_beam import split_search  # heavy: torch, only with --agent
 
-        agents = [agent_entry(s, load_agent(s), args.rule, args.value_beam) for s in args.agent]
+        for spec in args.agent:
+            check_agent_file(split_search(spec)[0])
+        agents = [
+            agent_entry(s, load_agent(split_search(s)[0]), args.rule, args.value_beam)
+            for s in args.agent
+        ]
         for (_, agent), grid_map in itertools.product(agents, grid_maps):  # before anything flies
             check_fits(agent, grid_map, args.any_map)
         policies += agents

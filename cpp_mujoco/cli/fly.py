@@ -20,11 +20,12 @@ from cpp_mujoco.review.recording_tools import open_command
 
 
 def load_agent_for(spec: str, grid_map):
-    """``--agent SPEC`` for ``grid_map``: a per-map agent only on a map of its size."""
-    from cpp_mujoco.agent import load_agent  # heavy: torch, only when an agent flies
+    """``--agent SPEC`` for ``grid_map`` (``NAME+value-beam``: agent NAME searching with its
+    values): a per-map agent only on a map of its size."""
+    from cpp_mujoco.agent.value_beam import load_policy, split_search  # heavy: torch, an agent
 
-    check_agent_file(spec)
-    agent = load_agent(spec)
+    check_agent_file(split_search(spec)[0])
+    agent = load_policy(spec)
     shape = getattr(agent, "map_shape", grid_map.shape)
     if shape is not None and tuple(shape) != grid_map.shape:  # None: a general agent, any size
         raise ValueError(

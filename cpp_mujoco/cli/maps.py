@@ -80,30 +80,39 @@ def agent_entry(
     spec: str, agent, rules: list[str] | None, value_beam: int | None = None
 ) -> tuple[str, object]:
     """(label, agent) of ``--agent SPEC`` flown with ``--rule rules`` (None: the file's own
-    rules) and, with ``--value-beam WIDTH``, through the beam search its Q-values rank; a label
-    with other rules than the file's says which (so do file names: runs with other rules never
-    overwrite each other), one with search says so and its width."""
-    names = rules_for(agent.rule_names, rules)
-    label = f"ddqn[{spec}]"
-    if names != agent.rule_names:
-        label, agent = f"ddqn[{spec}, rules: {'+'.join(names) or 'none'}]", agent.with_rules(names)
-    if value_beam:
-        from cpp_mujoco.agent.value_beam import ValueBeamAgent  # heavy: torch, only with --agent
+    rules) and, with ``--value-beam WIDTH`` or a spec ``NAME+value-beam``, through the beam search
+    its Q-values rank; a label with other rules than the file's says which (so do file names:
+    runs with other rules never overwrite each other), one with search says so and its width."""
+    from cpp_mujoco.agent.value_beam import (  # heavy: torch, only with --agent
+        DEFAULT_WIDTH,
+        ValueBeamAgent,
+        split_search,
+    )
 
-        agent = ValueBeamAgent(agent, value_beam)
+    name, search = split_search(spec)
+    names = rules_for(agent.rule_names, rules)
+    label = f"ddqn[{name}]"
+    if names != agent.rule_names:
+        label, agent = f"ddqn[{name}, rules: {'+'.join(names) or 'none'}]", agent.with_rules(names)
+    width = value_beam or (DEFAULT_WIDTH if search else None)
+    if width:
+        agent = ValueBeamAgent(agent, width)
         label += agent.name.removeprefix(agent.agent.name)
     return label, agent
 
 
 def _set_agent(spec: str, set_name: str, size: int):
-    """A trained agent for a map set: never a per-map agent (the bundled ones, or one trained
-    on a bundled map), which only flies the map it was trained on."""
+    """A trained agent for a map set (``NAME+value-beam``: agent NAME, which will search): never
+    a per-map agent (the bundled ones, or one trained on a bundled map), which only flies the
+    map it was trained on."""
     from cpp_mujoco.agent import (  # heavy: torch, only with --agent
         GENERAL_AGENTS,
         bundled_agents,
         load_agent,
     )
+    from cpp_mujoco.agent.value_beam import split_search  # heavy: torch, only with --agent
 
+    spec = split_search(spec)[0]
     check_agent_file(spec)
     per_map = f"agent {spec!r} is a per-map agent"
     if not is_path_like(spec, ".pt") and spec in bundled_agents() and spec not in GENERAL_AGENTS:

@@ -158,7 +158,8 @@ def add_evaluate(sub) -> None:
     )  # fmt: skip
     p.add_argument(
         "--agent", nargs="*", default=[],
-        help="trained agents: a bundled agent name (A) or a checkpoint file",
+        help="trained agents: a bundled agent name (A) or a checkpoint file; NAME+value-beam "
+        "searches with its values (general+value-beam: the bundled general policy)",
     )  # fmt: skip
     add_agent_options(p)
     add_any_map_option(p)
@@ -194,7 +195,9 @@ def add_fly(sub) -> None:
     p.add_argument("--map", default="A", help="bundled map name or PNG path (default: A)")
     add_cell_pixels_option(p)
     p.add_argument(
-        "--agent", help="bundled agent name or checkpoint file (default: a bundled map's agent)"
+        "--agent",
+        help="bundled agent name or checkpoint file, NAME+value-beam searching with its values "
+        "(default: a bundled map's agent)",
     )
     p.add_argument("--planner", choices=PLANNER_NAMES, help="fly a reference planner instead")
     add_any_map_option(p)
@@ -369,7 +372,9 @@ def add_site(sub) -> None:
         "price moves by --wind-speed (default: %(default)s)",
     )
     plan.add_argument(
-        "--agent", help="fly an agent instead: a bundled name (general) or a checkpoint file"
+        "--agent",
+        help="fly an agent instead: a bundled name (general), a checkpoint file, or "
+        "NAME+value-beam searching with its values",
     )
     add_any_map_option(plan)
     plan.add_argument(

@@ -44,10 +44,10 @@ def _raster(args):
 def _policy(args):
     """``--agent`` (a bundled name or checkpoint) or ``--planner`` (beam search by default)."""
     if args.agent:
-        from cpp_mujoco.agent import load_agent  # heavy: torch, only when an agent flies
+        from cpp_mujoco.agent.value_beam import load_policy, split_search  # heavy: torch
 
-        check_agent_file(args.agent)
-        return load_agent(args.agent)
+        check_agent_file(split_search(args.agent)[0])
+        return load_policy(args.agent)
     optimal = {"options": SolverOptions(time_limit_s=args.time_limit)}
     return make_planner(args.planner, optimal=optimal)
 

@@ -82,7 +82,11 @@ _BENCH_ROWS = (
 _DECISION_POLICIES = (
     ("general", "general agent with its rules", "≤ 20 ms"),
     ("general_network_alone", "general agent, network + return rule", "≤ 20 ms"),
-    ("general_value_beam", "general agent searching with its values (value beam)", ""),
+    (
+        "general_value_beam",
+        "the bundled general policy, searching with its values (value beam)",
+        "",
+    ),
     ("general_city", "city agent with its rules (on city32-v1)", "≤ 20 ms"),
     ("safe_greedy", "safe greedy planner", ""),
     ("beam_search", "beam search planner", ""),

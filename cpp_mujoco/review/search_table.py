@@ -1,19 +1,24 @@
 """The general agent searching with its learned values against the limit: on each held-out set's
-optimum sample, the coverage of beam search, the bundled agent and the agent's value beam, each
+optimum sample, the coverage of beam search, the general agent with its rules and the bundled
+general policy (the same agent's value beam), each
 with its gap to the best missions the exact planner found on the same episodes. Which samples
 fit the set's bundled agent is decided by :func:`~cpp_mujoco.review.truth_table.sample_fits`."""
 
 from __future__ import annotations
 
 VALUE_BEAM = "general+value-beam"
-COLUMNS = (("beam-search", "beam search"), ("general", "bundled agent"), (VALUE_BEAM, "value beam"))
+COLUMNS = (
+    ("beam-search", "beam search"),
+    ("general", "network + its rules"),
+    (VALUE_BEAM, "bundled policy (value beam)"),
+)
 SEARCH_TEXT = (
     "Coverage (gap to the best missions found, ± its standard error, in points) on each set's "
     "optimum sample: episodes drawn uniformly over the protocol (`scripts/optimum_sample.py`, "
     "results/optimum_SET.json), every one solved by the exact planner from the best of the "
-    "policies' missions. *Value beam*: the bundled general agent flown through a beam search of "
-    "32 paths per episode that its Q-values rank, its own mission the fallback (`cpp-mujoco "
-    "evaluate --agent general --value-beam`; [The agents](../agent.md))."
+    "policies' missions. *Bundled policy*: the bundled general agent flown through a beam search "
+    "of 32 paths per episode that its Q-values rank, its own mission the fallback (`cpp-mujoco "
+    "evaluate --agent general+value-beam`; [The agents](../agent.md))."
 )
 
 

@@ -1,5 +1,6 @@
 """Every held-out set in one table, against its limit: the general agent's network with the return
-rule only, the bundled policy with its rules, the two planners, and how far above beam search the
+rule only, the network with its rules, the bundled policy (the same agent searching with its
+values: ``general+value-beam``), the two planners, and how far above beam search the
 exact planner's best missions and proven bound lie on a seeded sample of the same protocol.
 
 The full-protocol columns and the sample columns are different episodes, so the sample's numbers
@@ -17,12 +18,13 @@ TRUTH_TEXT = (
     "Coverage · landing, means over the set's maps. *Network + return rule*: the general agent's "
     "network with the return rule only (`--rule return-mask`; "
     "`python scripts/results_flights.py network-alone --map-set SET`, "
-    "results/network_alone_SET.json). *Bundled policy*: the bundled general agent with its own "
-    "rules (the return, revisit, finish and progress masks); on the city sets the city-trained "
-    "`general-city`, which reads obstacles and adds symmetric Q; — where "
-    "no bundled agent fits the set. *Bundled + value beam*: that policy flown through the beam "
-    "search its Q-values rank (`--value-beam`, 32 paths; one UAV's decision in "
-    "results/decision_time.json; `python scripts/results_flights.py value-beam --map-set SET`, "
+    "results/network_alone_SET.json). *Network + its rules*: the bundled general agent with its "
+    "own rules (the return, revisit, finish and progress masks; `--agent general`); on the city "
+    "sets the city-trained `general-city`, which reads obstacles and adds symmetric Q; — where "
+    "no bundled agent fits the set. *Bundled policy*: the same agent searching with its values, "
+    "the bundled general policy (`--agent general+value-beam`: a beam of 32 paths its Q-values "
+    "rank, its own mission the fallback; one UAV's decision in results/decision_time.json; "
+    "`python scripts/results_flights.py value-beam --map-set SET`, "
     "results/value_beam_SET.json); — where not flown with the present agent file and rules. "
     "The last two "
     "columns come from a seeded sample of the same protocol solved by the exact planner "
@@ -198,8 +200,9 @@ def truth_table(entries: list[tuple]) -> str:
     file])``, each None where absent: coverage · landing over the full protocol, then the
     sample's gaps. A value-beam file flown with an earlier agent file or rules shows as —."""
     lines = [
-        "| set | episodes | network + return rule | bundled policy | bundled + value beam "
-        "| safe greedy | beam search | best missions − beam (sample) | bound − beam (sample) |",
+        "| set | episodes | network + return rule | network + its rules "
+        "| bundled policy (+ value beam) | safe greedy | beam search "
+        "| best missions − beam (sample) | bound − beam (sample) |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for data, network, optimum, *value_beam in entries:
@@ -242,9 +245,9 @@ SYMMETRIC_Q_TEXT = (
     "The bundled general agent with the symmetric-Q rule added (`--rule +symmetric-q`: the argmax "
     "of its Q-values averaged over the map's 8 rotations and mirror images, 8 network readings "
     "a step; `python scripts/results_flights.py symmetric-q --map-set SET`, "
-    "results/symmetric_q_SET.json), beside the same set's bundled policy and planners; the sets "
-    "flown so far. On the paper's maps A, B and C, which it learned in their own orientation, the "
-    "rule costs coverage, so the bundled general agent does not act with it."
+    "results/symmetric_q_SET.json), beside the same agent with its own rules and the planners; "
+    "the sets flown so far. On the paper's maps A, B and C, which it learned in their own "
+    "orientation, the rule costs coverage, so the bundled general agent does not act with it."
 )
 
 
@@ -263,7 +266,7 @@ def variant_table(entries: list[tuple[dict, dict]], variant: Variant) -> str:
     policy, the same agent with the variant's addition, and the planners, over the full
     protocol."""
     lines = [
-        f"| set | episodes | bundled policy | {variant.column} | safe greedy | beam search |",
+        f"| set | episodes | network + its rules | {variant.column} | safe greedy | beam search |",
         "|---|---|---|---|---|---|",
     ]
     for data, flown in entries:
@@ -308,9 +311,10 @@ def variant_section(entries: list[tuple[dict, dict | None]], variant: Variant, t
 
 VALUE_BEAM_TEXT = (
     "The bundled general agent with its rules flown through the beam search its Q-values rank "
-    "(`--value-beam`: 32 paths per episode, its own mission the fallback; `python "
+    "(`--agent general+value-beam`: 32 paths per episode, its own mission the fallback; `python "
     "scripts/results_flights.py value-beam --map-set SET`, results/value_beam_SET.json), beside "
-    "the same set's bundled policy and planners, over the whole protocol; the sets flown so far."
+    "the same agent with its own rules and the planners, over the whole protocol; the sets flown "
+    "so far. This is the bundled general policy (`--agent general+value-beam`)."
 )
 
 
