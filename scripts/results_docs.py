@@ -183,7 +183,8 @@ def map_set_page(paths: list[Path]) -> str:
         entries.append(
             (path.name, data, *(load(f) if (RESULTS / f).is_file() else None for f in more))
         )
-    return page(entries, GENERATED, MAP_SET_COMMAND)
+    decision = load("decision_time.json") if (RESULTS / "decision_time.json").is_file() else None
+    return page(entries, GENERATED, MAP_SET_COMMAND, decision)
 
 
 # ------------------------------------------------------------------ grid → MuJoCo (transfer)

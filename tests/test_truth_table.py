@@ -247,3 +247,14 @@ def test_value_beam_column_from_its_file_and_a_dash_for_an_earlier_agent():
     fewer["conditions"]["budgets"]["step"] = 5  # another protocol
     with pytest.raises(ValueError, match="value-beam file flew another protocol"):
         truth_table([(data, None, None, fewer)])
+
+
+def test_the_page_says_what_a_decision_of_the_bundled_policy_costs():
+    data, decision = load("map_set_heldout16-v1.json"), copy.deepcopy(load("decision_time.json"))
+    decision["decision"]["general_value_beam_16x16_ms_mean"] = 12.34
+    decision["decision"]["general_value_beam_32x32_ms_max"] = 2345.6
+    page = map_set_page([("f.json", data, None, None, None, None)], "", "flights", decision)
+    (line,) = [x for x in page.splitlines() if x.startswith("Decision time")]
+    assert "the bundled policy 12.3 / " in line and "/ 2346 ms;" in line
+    assert decision["command"] in line
+    assert "Decision time" not in map_set_page([("f.json", data, None, None, None, None)], "", "")

@@ -18,11 +18,34 @@ from cpp_mujoco.review.truth_table import (
 )
 
 
-def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
+def decision_text(decision: dict | None, source: str) -> list[str]:
+    """What one UAV's decision costs the bundled policy and the network with its rules, from
+    ``cpp-mujoco benchmark --only decision``'s report ``source`` (nothing without one)."""
+    if decision is None:
+        return []
+    times = decision["decision"]
+
+    def ms(policy: str, stat: str, digits: int = 1) -> str:
+        return " / ".join(f"{times[f'{policy}_{n}x{n}_ms_{stat}']:.{digits}f}" for n in (16, 32))
+
+    return [
+        "",
+        "Decision time, one UAV on one core, 16×16 / 32×32: the bundled policy "
+        f"{ms('general_value_beam', 'mean')} ms per action on average, its first decision "
+        f"(the whole plan) {ms('general_value_beam', 'max', 0)} ms; the network with its rules "
+        f"{ms('general', 'mean')} ms, with the return rule only "
+        f"{ms('general_network_alone', 'mean')} ms (`{decision['command']}`, {source}).",
+    ]
+
+
+def map_set_page(
+    entries: list[tuple], generated: str, command: str, decision: dict | None = None
+) -> str:
     """The held-out sets' page from ``(file name, map_set file, network-alone file, optimum
-    sample, symmetric-Q file, value-beam file)`` per set (None: none): the truth table, the
-    general agent with symmetric Q, then searching with its values, where flown, then each set's
-    policies."""
+    sample, symmetric-Q file, value-beam file)`` per set (None: none): the truth table (and,
+    with ``decision``, the benchmark's report of one UAV's decision time, what the bundled policy
+    costs), the general agent with symmetric Q, then searching with its values, where flown,
+    then each set's policies."""
     table = truth_table([(e[1], e[2], e[3], e[5]) for e in entries])
     parts = [
         generated,
@@ -37,6 +60,7 @@ def map_set_page(entries: list[tuple], generated: str, command: str) -> str:
         table,
         "",
         TRUTH_TEXT,
+        *decision_text(decision, "results/decision_time.json"),
     ]
     parts += variant_section([(e[1], e[4]) for e in entries], SYMMETRIC_Q, SYMMETRIC_Q_TEXT)
     parts += search_section([(e[1], e[3]) for e in entries])
