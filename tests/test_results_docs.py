@@ -50,6 +50,8 @@ def test_the_readme_example_runs(capsys):
     exec(compile(code, "README.md:example", "exec"), namespace)
     result = namespace["result"]
     assert result.landed.size > 0 and result.landing_ratio == 1.0
+    assert namespace["searching"].landing_ratio == 1.0
+    assert namespace["searching"].policy_name == "ddqn-general+value-beam"
     assert capsys.readouterr().out.strip()
 
 
