@@ -242,6 +242,25 @@ def test_the_crash_reward_is_what_a_training_crash_pays(tmp_path):
             TrainConfig(crash_reward=bad)
 
 
+def test_the_move_reward_is_what_a_training_move_pays(tmp_path):
+    """``move_reward`` sets the training MDP's reward per move: the same episodes pay the same
+    rewards but for each move's share; nonsense is refused."""
+    from cpp_mujoco.grid.actions import NORTH
+
+    rewards = []
+    for move in (-0.2, 0.0):
+        cfg = TrainConfig(map="A", min_budget=5, max_budget=5, num_envs=4, move_reward=move,
+                          threads=1, demo_fraction=0.0, guide_fraction=0.0)  # fmt: skip
+        env = Trainer(cfg, tmp_path / str(move)).env
+        env.reset(seed=0)
+        _, reward, _, _, _ = env.step(np.full(4, NORTH))
+        rewards.append(reward)
+    np.testing.assert_allclose(rewards[1] - rewards[0], 0.2)
+    for bad in (float("nan"), 0.5):
+        with pytest.raises(ValueError, match="move_reward"):
+            TrainConfig(move_reward=bad)
+
+
 def test_a_first_stage_stops_at_its_update_on_the_whole_runs_schedule(tmp_path):
     """``stop_after_updates`` ends the run there, with the learning rate and the guide where
     ``total_updates``' schedule has them, and a resume may carry the run on to the end."""

@@ -51,6 +51,8 @@ _HELP = {
     "wind_gust_scale": "wind option: each episode's gust spread × a factor uniform in 1..this",
     "crash_reward": "the MDP's crash reward while training (the paper's: −150); evaluation"
     " reports landing and coverage, which do not depend on it",
+    "move_reward": "the MDP's reward per move while training (the paper's: −0.2; 0 with gamma"
+    " near 1: coverage is the objective); evaluation reports landing and coverage",
     "init_from": "start from this agent's weights (bundled name or file; empty = random)",
     "stop_after_updates": "end the run at this many updates, keeping the schedules of"
     " --total-updates (0 = at --total-updates): a staged run's first stage",
