@@ -66,11 +66,12 @@ def cmd_evaluate(args) -> None:
         from cpp_mujoco.agent import load_agent  # heavy: torch, only with --agent
         from cpp_mujoco.agent.value_beam import split_search  # heavy: torch, only with --agent
 
-        for spec in args.agent:
-            check_agent_file(split_search(spec)[0])
+        names = [split_search(spec)[0] for spec in args.agent]  # the agents, search or not
+        for name in names:
+            check_agent_file(name)
         agents = [
-            agent_entry(s, load_agent(split_search(s)[0]), args.rule, args.value_beam)
-            for s in args.agent
+            agent_entry(spec, load_agent(name), args.rule, args.value_beam)
+            for spec, name in zip(args.agent, names, strict=True)
         ]
         for (_, agent), grid_map in itertools.product(agents, grid_maps):  # before anything flies
             check_fits(agent, grid_map, args.any_map)

@@ -1,8 +1,8 @@
 """The general agent searching with its learned values against the limit: on each held-out set's
 optimum sample, the coverage of beam search, the general agent with its rules and the bundled
-general policy (the same agent's value beam), each
-with its gap to the best missions the exact planner found on the same episodes. Which samples
-fit the set's bundled agent is decided by :func:`~cpp_mujoco.review.truth_table.sample_fits`."""
+general policy (the same agent's value beam), each with its gap to the best missions the exact
+planner found on the same episodes. Which samples fit the set's bundled agent is decided by
+:func:`~cpp_mujoco.review.truth_table.sample_fits`."""
 
 from __future__ import annotations
 
