@@ -175,10 +175,10 @@ def map_set_page(paths: list[Path]) -> str:
     entries = []
     for path in paths:
         data = json.loads(path.read_text(encoding="utf-8"))
-        name = data["map_set"]["name"]
+        key = path.stem.removeprefix("map_set_")  # the set, and "_stepN" where sampled
         more = [
-            f"network_alone_{name}.json", f"optimum_{name}.json", f"symmetric_q_{name}.json",
-            f"value_beam_{name}.json",
+            f"network_alone_{key}.json", f"optimum_{key}.json", f"symmetric_q_{key}.json",
+            f"value_beam_{key}.json",
         ]  # fmt: skip
         entries.append(
             (path.name, data, *(load(f) if (RESULTS / f).is_file() else None for f in more))

@@ -14,14 +14,19 @@
                                                       # results/symmetric_q_*.json
     python scripts/results_flights.py value-beam --map-set scatter16-v1 --workers 2
                                                       # results/value_beam_*.json
+    python scripts/results_flights.py value-beam --map-set city50-v1 --agent general-city \
+        --budget-step 10                              # results/value_beam_city50-v1_step10.json
     python scripts/results_flights.py energy                      # results/action_energy.json
     python scripts/results_flights.py wind-agents                 # results/wind_agents_grid.json
     python scripts/results_flights.py calibration                 # results/calibration.json
 
-then ``python scripts/results_docs.py`` rewrites the pages from them. A map-set flight stopped
-part-way leaves its rows in results/partial/ and the same command resumes it there. Each file
-records the command that flew it; every result in it names its map (and digest), policy,
-backend and conditions.
+then ``python scripts/results_docs.py`` rewrites the pages from them. ``--budget-step N`` flies a
+map-set family at every N-th budget only (the largest included), for a set whose whole protocol
+costs more than a sitting: its files end in ``_stepN`` and its rows are named a sample of the
+protocol wherever shown; flown with the planners at the same step (``map-set --budget-step N``),
+they are compared on the same episodes. A map-set flight stopped part-way leaves its rows in
+results/partial/ and the same command resumes it there. Each file records the command that flew
+it; every result in it names its map (and digest), policy, backend and conditions.
 """
 
 from __future__ import annotations
@@ -66,37 +71,43 @@ def transfer(workers: int, budget_step: int, wind_agents: bool = False) -> None:
     write(f"transfer_abc{suffix.replace('-', '_')}.json", {"command": command, "results": rows})
 
 
-def map_set(name: str, agent: str | None = "general", workers: int = 1) -> None:
+def set_file(family: str, name: str, budget_step: int = 1) -> str:
+    """A map-set family's result file: ``<family>_<set>.json``, ``…_step<N>.json`` where only
+    every N-th budget is flown."""
+    return f"{family}_{name}" + ("" if budget_step == 1 else f"_step{budget_step}") + ".json"
+
+
+def map_set(name: str, agent: str | None = "general", workers: int = 1, step: int = 1) -> None:
     """``cpp-mujoco evaluate --map-set NAME`` for the planners and a general agent (none: a set
     it does not fit, e.g. obstacles it cannot see) on the grid (every map, the whole protocol):
     results/map_set_<NAME>.json."""
     args = ["--planner", "safe-greedy", "beam-search", *(["--agent", agent] if agent else [])]
-    _evaluate_set(name, args, f"map_set_{name}.json", workers)
+    _evaluate_set(name, args, set_file("map_set", name, step), workers, step)
 
 
-def network_alone(name: str, agent: str, workers: int = 1) -> None:
+def network_alone(name: str, agent: str, workers: int = 1, step: int = 1) -> None:
     """The general agent's network with the return rule only (no revisit or finish mask) on a
     map set, the whole protocol on the grid: results/network_alone_<NAME>.json."""
     args = ["--agent", agent, "--rule", "return-mask"]
-    _evaluate_set(name, args, f"network_alone_{name}.json", workers)
+    _evaluate_set(name, args, set_file("network_alone", name, step), workers, step)
 
 
-def symmetric_q(name: str, agent: str, workers: int = 1) -> None:
+def symmetric_q(name: str, agent: str, workers: int = 1, step: int = 1) -> None:
     """The general agent with its rules and the symmetric-Q rule added on a map set, the whole
     protocol on the grid: results/symmetric_q_<NAME>.json."""
     args = ["--agent", agent, "--rule", "+symmetric-q"]
-    _evaluate_set(name, args, f"symmetric_q_{name}.json", workers)
+    _evaluate_set(name, args, set_file("symmetric_q", name, step), workers, step)
 
 
-def value_beam(name: str, agent: str, workers: int = 1) -> None:
+def value_beam(name: str, agent: str, workers: int = 1, step: int = 1) -> None:
     """The general agent with its rules flown through the beam search its Q-values rank
     (``--value-beam``, 32 paths) on a map set, the whole protocol on the grid:
     results/value_beam_<NAME>.json."""
     args = ["--agent", agent, "--value-beam"]
-    _evaluate_set(name, args, f"value_beam_{name}.json", workers)
+    _evaluate_set(name, args, set_file("value_beam", name, step), workers, step)
 
 
-def _evaluate_set(name: str, args: list[str], result: str, workers: int) -> None:
+def _evaluate_set(name: str, args: list[str], result: str, workers: int, step: int = 1) -> None:
     """``evaluate --map-set`` into runs/flights/<result>/, the result copied to results/. The
     rows are kept in results/partial/<result>.rows.json as they land: a flight stopped part-way
     (a long one spans several sittings) resumes from it, committed or not."""
@@ -108,6 +119,7 @@ def _evaluate_set(name: str, args: list[str], result: str, workers: int) -> None
     stem = Path(result).stem
     out, checkpoint = ROOT / "runs" / "flights" / stem, PARTIAL / f"{stem}.rows.json"
     args = [*args, "--workers", str(workers), "--checkpoint", str(checkpoint)]
+    args += [] if step == 1 else ["--budget-step", str(step)]
     code = cli(["evaluate", "--map-set", name, *args, "--out", str(out)])
     if code:
         raise SystemExit(code)
@@ -228,22 +240,30 @@ def main(argv=None) -> int:
         help="transfer: MuJoCo worker processes; map-set, network-alone, symmetric-q, "
         "value-beam: processes flying the set's maps side by side",
     )  # fmt: skip
-    p.add_argument("--budget-step", type=int, default=10, help="transfer: every n-th budget")
+    p.add_argument(
+        "--budget-step", type=int, default=None,
+        help="transfer: every n-th budget (default 10); map-set, network-alone, symmetric-q, "
+        "value-beam: every n-th budget of the set's size class, a sample of the protocol "
+        "(default 1: every budget)",
+    )  # fmt: skip
     p.add_argument("--wind-agents", action="store_true", help="transfer: the wind-robust agents")
     p.add_argument("--repeats", type=int, default=5, help="energy: gust histories per row")
     args = p.parse_args(argv)
+    if args.budget_step is not None and args.budget_step < 1:
+        p.error(f"--budget-step must be a positive integer, got {args.budget_step}")
+    step = args.budget_step or 1
     if args.family == "planners":
         planners()
     elif args.family == "transfer":
-        transfer(args.workers, args.budget_step, args.wind_agents)
+        transfer(args.workers, args.budget_step or 10, args.wind_agents)
     elif args.family == "map-set":
-        map_set(args.map_set, None if args.no_agent else args.agent, args.workers)
+        map_set(args.map_set, None if args.no_agent else args.agent, args.workers, step)
     elif args.family == "network-alone":
-        network_alone(args.map_set, args.agent, args.workers)
+        network_alone(args.map_set, args.agent, args.workers, step)
     elif args.family == "symmetric-q":
-        symmetric_q(args.map_set, args.agent, args.workers)
+        symmetric_q(args.map_set, args.agent, args.workers, step)
     elif args.family == "value-beam":
-        value_beam(args.map_set, args.agent, args.workers)
+        value_beam(args.map_set, args.agent, args.workers, step)
     elif args.family == "wind-agents":
         wind_agents()
     elif args.family == "calibration":

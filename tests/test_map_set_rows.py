@@ -2,6 +2,7 @@
 interrupted flight with the rows it holds, and only with rows of the very same flight."""
 
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -220,9 +221,23 @@ PARTIAL = Path(__file__).resolve().parent.parent / "results" / "partial"
     "path", sorted(PARTIAL.glob("*.rows.json")), ids=lambda p: p.name.removesuffix(".rows.json")
 )
 def test_a_committed_partial_flight_holds_rows_of_its_own_set(path):
-    """results/partial/<family>_<set>.rows.json: what `results_flights.py` resumes from."""
+    """results/partial/<family>_<set>[_stepN].rows.json: what `results_flights.py` resumes
+    from (``_stepN``: a flight of every N-th budget)."""
     rows = map_set_rows.Checkpoint(path).rows
-    name = path.name.removesuffix(".rows.json")
+    name = re.sub(r"_step\d+$", "", path.name.removesuffix(".rows.json"))
     spec = next(map_set_spec(s) for s in map_set_names() if name.endswith("_" + s))
     assert rows and all(r["map_digest"] in spec.digests for r in rows.values())
     assert all(r["backend"] == "grid" and r["landing_ratio"] >= 0 for r in rows.values())
+
+
+def test_a_flight_of_every_nth_budget_gets_files_of_its_own(capsys):
+    import runpy
+
+    script = runpy.run_path(str(PARTIAL.parents[1] / "scripts" / "results_flights.py"))
+    assert script["set_file"]("value_beam", "city50-v1") == "value_beam_city50-v1.json"
+    assert script["set_file"]("map_set", "city50-v1", 10) == "map_set_city50-v1_step10.json"
+    with pytest.raises(SystemExit) as stop:
+        script["main"](["value-beam", "--map-set", "city50-v1", "--budget-step", "0"])
+    assert stop.value.code == 2 and "--budget-step must be a positive integer" in (
+        capsys.readouterr().err
+    )

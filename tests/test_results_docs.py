@@ -71,3 +71,28 @@ def test_every_committed_result_names_its_map_policy_backend_and_conditions():
                 assert row["map_digest"] == load_map(row["map"]).digest, (path, row["map"])
         for row in data.get("rows", []) if isinstance(data.get("rows"), list) else []:
             assert {"map", "map_digest", "policy"} <= set(row), path
+
+
+def test_a_sampled_set_file_reads_the_files_of_its_own_sample(tmp_path):
+    # map_set_SET_step10.json pairs with value_beam_SET_step10.json, never the whole protocol's
+    import copy
+    import json
+
+    page_of = _script()["map_set_page"]
+    page_of.__globals__["RESULTS"] = tmp_path
+    data = json.loads((ROOT / "results" / "map_set_heldout16-v1.json").read_text("utf-8"))
+    sampled = copy.deepcopy(data)
+    sampled["budgets"]["step"] = sampled["conditions"]["budgets"]["step"] = 10
+    whole = json.loads((ROOT / "results" / "value_beam_heldout16-v1.json").read_text("utf-8"))
+    searching = copy.deepcopy(whole)
+    searching["budgets"]["step"] = searching["conditions"]["budgets"]["step"] = 10
+    searching["policies"][0]["mean_coverage_ratio"] = 0.1234
+    files = {"map_set_heldout16-v1_step10.json": sampled,
+             "value_beam_heldout16-v1.json": whole,
+             "value_beam_heldout16-v1_step10.json": searching}  # fmt: skip
+    for name, content in files.items():
+        (tmp_path / name).write_text(json.dumps(content), encoding="utf-8")
+    page = page_of([tmp_path / "map_set_heldout16-v1_step10.json"])
+    rows = [x for x in page.splitlines() if x.startswith("| heldout16-v1 (every 10th budget) |")]
+    assert len(rows) == 2  # the truth table's row and the value beam's
+    assert all("| 12.34% · 100.00% |" in row for row in rows)

@@ -258,3 +258,44 @@ def test_the_page_says_what_a_decision_of_the_bundled_policy_costs():
     assert "the bundled policy 12.3 / " in line and "/ 2346 ms;" in line
     assert decision["command"] in line
     assert "Decision time" not in map_set_page([("f.json", data, None, None, None, None)], "", "")
+
+
+def as_sampled(data: dict, step: int) -> dict:
+    """A set file as flown at every ``step``-th budget (what its budgets and conditions say)."""
+    out = copy.deepcopy(data)
+    out["budgets"]["step"] = out["conditions"]["budgets"]["step"] = step
+    return out
+
+
+def test_a_set_flown_at_every_nth_budget_is_named_a_sample_wherever_shown():
+    data = load("map_set_heldout16-v1.json")
+    sampled = as_sampled(data, 10)
+    entries = [("full.json", data, None, None, None, None)]
+    page = map_set_page(entries, "", "flights")
+    assert "every n-th budget" not in page and "th budget)" not in page
+    entries.append(("map_set_heldout16-v1_step10.json", sampled, None, None, None,
+                    as_value_beam(sampled)))  # fmt: skip
+    page = map_set_page(entries, "", "flights")
+    truth = page.split("## Every set against its limit")[1].split("##")[0]
+    rows = [line for line in truth.splitlines() if line.startswith("| heldout16-v1")]
+    assert [r.split("|")[1].strip() for r in rows] == [
+        "heldout16-v1", "heldout16-v1 (every 10th budget)",
+    ]  # fmt: skip
+    assert "| 80.00% · 100.00% |" in rows[1] and "| 80.00%" not in rows[0]
+    assert "every n-th budget of its size class" in page
+    assert "## heldout16-v1 (every 10th budget) (100 of its 100 maps" in page
+    assert "flights --map-set heldout16-v1 --budget-step 10`" in page
+    searching = page.split("the whole protocol")[1]
+    assert "| heldout16-v1 (every 10th budget) |" in searching
+    with pytest.raises(ValueError, match="value-beam file flew another protocol"):
+        truth_table([(data, None, None, as_value_beam(sampled))])  # a sample beside the whole
+
+
+@pytest.mark.parametrize(
+    ("step", "words"), [(2, "2nd"), (3, "3rd"), (5, "5th"), (11, "11th"), (21, "21st")]
+)
+def test_the_sample_s_budget_step_reads_as_an_ordinal(step, words):
+    from cpp_mujoco.review.truth_table import set_label
+
+    data = as_sampled(load("map_set_heldout16-v1.json"), step)
+    assert set_label(data) == f"heldout16-v1 (every {words} budget)"

@@ -13,8 +13,15 @@ from cpp_mujoco.review.truth_table import (
     agent_name,
     bundled_row,
     search_section,
+    set_label,
     truth_table,
     variant_section,
+)
+
+SAMPLED_TEXT = (
+    " A set whose whole protocol costs a policy more than a sitting is also flown at every n-th "
+    "budget of its size class (the largest included), every policy of its rows on those same "
+    "episodes: its rows say so beside the set's name."
 )
 
 
@@ -47,13 +54,14 @@ def map_set_page(
     costs), the general agent with symmetric Q, then searching with its values, where flown,
     then each set's policies."""
     table = truth_table([(e[1], e[2], e[3], e[5]) for e in entries])
+    sampled = any(e[1]["budgets"]["step"] != 1 for e in entries)
     parts = [
         generated,
         "# Results: held-out map sets",
         "",
         "The paper's protocol (every landing cell × every budget of the map's size class) on every "
         "map of a held-out set, on the grid; landing and coverage are means over the maps (each "
-        "map weighs the same), the worst map's landing beside them.",
+        "map weighs the same), the worst map's landing beside them." + SAMPLED_TEXT * sampled,
         "",
         "## Every set against its limit",
         "",
@@ -69,9 +77,11 @@ def map_set_page(
         spec = data["map_set"]
         agent = agent_name(bundled_row(data))
         option = {None: " --no-agent", "general": ""}.get(agent, f" --agent {agent}")
+        step = data["budgets"]["step"]
+        option += "" if step == 1 else f" --budget-step {step}"
         parts += [
             "",
-            f"## {spec['name']} ({spec['evaluated']} of its {spec['count']} maps, "
+            f"## {set_label(data)} ({spec['evaluated']} of its {spec['count']} maps, "
             f"{spec['size']}×{spec['size']})",
             "",
             "| policy | maps | episodes | landing | coverage | worst map's landing |",

@@ -34,6 +34,17 @@ TRUTH_TEXT = (
 )
 
 
+def set_label(data: dict) -> str:
+    """A set file's name in tables: the set's, and the budgets it flew where not every one (a
+    sample of the protocol: ``city50-v1 (every 10th budget)``)."""
+    step = data["budgets"]["step"]
+    name = data["map_set"]["name"]
+    if step == 1:
+        return name
+    suffix = {1: "st", 2: "nd", 3: "rd"}.get(step % 10 if step % 100 not in (11, 12, 13) else 0)
+    return f"{name} (every {step}{suffix or 'th'} budget)"
+
+
 def _cell(row: dict | None) -> str:
     if row is None:
         return "—"
@@ -223,7 +234,7 @@ def truth_table(entries: list[tuple]) -> str:
         label = f" ({bundled['policy']})" if agent_name(bundled) not in (None, "general") else ""
         best, bound = _sample_gaps(optimum)
         lines.append(
-            f"| {data['map_set']['name']} | {episodes.pop()} | {_cell(network_row(network))} | "
+            f"| {set_label(data)} | {episodes.pop()} | {_cell(network_row(network))} | "
             f"{_cell(bundled)}{label} | {_cell(searching)} | {_cell(by_name.get(PLANNERS[0]))} | "
             f"{_cell(by_name.get(PLANNERS[1]))} | {best} | {bound} |"
         )
@@ -282,7 +293,7 @@ def variant_table(entries: list[tuple[dict, dict]], variant: Variant) -> str:
             )
         by_name = {r["policy"]: r for r in data["policies"]}
         lines.append(
-            f"| {data['map_set']['name']} | {row['episodes']} | {_cell(bundled)} | {_cell(row)} | "
+            f"| {set_label(data)} | {row['episodes']} | {_cell(bundled)} | {_cell(row)} | "
             f"{_cell(by_name.get(PLANNERS[0]))} | {_cell(by_name.get(PLANNERS[1]))} |"
         )
     return "\n".join(lines)
@@ -295,7 +306,7 @@ def variant_section(entries: list[tuple[dict, dict | None]], variant: Variant, t
     if not flown:
         return []
     fits = [(data, other) for data, other in flown if variant.fits(data, other)]
-    earlier = [data["map_set"]["name"] for data, other in flown if not variant.fits(data, other)]
+    earlier = [set_label(data) for data, other in flown if not variant.fits(data, other)]
     parts = ["", f"## {variant.heading}"]
     if fits:
         parts += ["", variant_table(fits, variant), "", text]
