@@ -7,14 +7,21 @@ import numpy as np
 import pytest
 import torch
 
+from cpp_mujoco.agent import load_agent
 from cpp_mujoco.agent.general_network import GeneralQNetwork
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.rules import SymmetricQ
 from cpp_mujoco.grid.actions import EAST, LAND, NORTH, SOUTH, WEST
 from cpp_mujoco.grid.mdp import GridConfig, GridMDP
-from cpp_mujoco.grid.symmetry import action_permutation, symmetric_q_values, turn_observation
+from cpp_mujoco.grid.symmetry import (
+    action_permutation,
+    shares_one_map,
+    symmetric_q_values,
+    turn_observation,
+)
 from cpp_mujoco.grid.wind import action_kind, wind_velocity
 from cpp_mujoco.map_sets.generator import generate_from_seed
+from cpp_mujoco.map_sets.sets import load_map_set
 from cpp_mujoco.maps import GridMap, MapError, load_map
 from cpp_mujoco.maps.symmetry import (
     IDENTITY,
@@ -122,9 +129,35 @@ def test_a_non_square_map_reads_the_four_images_that_keep_its_shape():
         nfz=np.zeros((12, 20), bool),
     )
     readings = []
-    obs = _observations(wide, 2)
-    symmetric_q_values(lambda o: readings.append(o["coverage"].shape) or np.zeros((8, 5)), obs)
-    assert readings == [(4 * 2, 12, 20)]  # the four images stacked, read at once
+    obs = _observations(wide, 1)
+
+    def read(o):
+        readings.append(o["coverage"].shape)
+        return np.zeros((o["coverage"].shape[0], 5))
+
+    symmetric_q_values(read, obs)
+    assert readings == [(4 * 1, 12, 20)]  # one UAV: the four images stacked, read at once
+    readings.clear()
+    symmetric_q_values(read, _observations(wide, 3))
+    assert readings == [(3, 12, 20)] * 4  # rows on one map: image by image, each shared
+
+
+def test_image_by_image_gives_the_stacked_images_numbers_bit_for_bit():
+    """A batch on one city map (obstacles, the city agent) read image by image, where the
+    agent's shared features read each grid once, equals the stacked pass exactly; an episode
+    rollout flies the same actions either way."""
+    agent = load_agent("general-city")
+    grid_map = load_map_set("city32-v1", first=1)[0]
+    starts = np.repeat(np.flatnonzero(grid_map.landing.reshape(-1))[:3], 20)
+    mdp = GridMDP(grid_map, starts.size, GridConfig(max_budget=150))
+    mdp.restore(starts, np.tile(np.arange(60, 80), 3), np.zeros((starts.size, 1024), bool))
+    for _ in range(3):
+        obs = mdp.observation()
+        assert shares_one_map(obs) and not shares_one_map({**obs, "map": np.array(obs["map"])})
+        each = symmetric_q_values(agent.q_values, obs)
+        stacked = symmetric_q_values(agent.q_values, {**obs, "map": np.array(obs["map"])})
+        assert np.array_equal(each, stacked)
+        mdp.step(each.argmax(axis=1))
 
 
 def test_the_stacked_images_are_each_image_and_an_agent_reads_its_active_rows_of_each():

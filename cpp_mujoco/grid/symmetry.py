@@ -36,20 +36,41 @@ def action_permutation(symmetry: Symmetry) -> np.ndarray:
 PERMUTATIONS = {s: action_permutation(s) for s in SYMMETRIES}  # read per step: computed once
 
 
+# a map shared by the batch: (3, H, W), and its obstacle layer (H, W)
+_SHARED_DIMS = {"map": 3, "obstacle": 2}
+
+
+def _broadcast(value: np.ndarray, key: str) -> bool:
+    """A batch's layer that is one map's, broadcast over the rows (stride 0)."""
+    return np.ndim(value) == _SHARED_DIMS.get(key, -1) + 1 and value.strides[0] == 0
+
+
 def turn_observation(obs: dict[str, np.ndarray], symmetry: Symmetry) -> dict[str, np.ndarray]:
     """A batched observation (``map`` (3,H,W) or (N,3,H,W), ``coverage`` and ``position``
-    (N,H,W), ``wind`` (N,2)) as seen on the image; other keys (the budget) are unchanged."""
+    (N,H,W), ``wind`` (N,2)) as seen on the image; other keys (the budget) are unchanged. A map
+    broadcast over the batch stays one map, broadcast."""
     out = dict(obs)
     for key in ("map", "coverage", "position", "obstacle"):
-        if key in obs:
-            out[key] = np.ascontiguousarray(turn_cells(obs[key], symmetry))
+        if key not in obs:
+            continue
+        value = np.asarray(obs[key])
+        if _broadcast(value, key):
+            one = np.ascontiguousarray(turn_cells(value[0], symmetry))
+            out[key] = np.broadcast_to(one, (value.shape[0], *one.shape))
+        else:
+            out[key] = np.ascontiguousarray(turn_cells(value, symmetry))
     if "wind" in obs:
         out["wind"] = turn_wind(obs["wind"], symmetry)
     return out
 
 
-# a map shared by the batch: (3, H, W), and its obstacle layer (H, W)
-_SHARED_DIMS = {"map": 3, "obstacle": 2}
+def shares_one_map(obs: dict[str, np.ndarray]) -> bool:
+    """Every row of the batch is on one map: its layers whole ((3,H,W)) or broadcast."""
+    return all(
+        np.ndim(obs[key]) == dims or _broadcast(np.asarray(obs[key]), key)
+        for key, dims in _SHARED_DIMS.items()
+        if key in obs
+    )
 
 
 def stacked_images(
@@ -70,12 +91,18 @@ def stacked_images(
 
 def symmetric_q_values(q_values, obs: dict[str, np.ndarray]) -> np.ndarray:
     """The mean over the map's symmetries of ``q_values`` read on each image, each image's
-    actions mapped back to the map's. ``q_values`` reads a batch of observations → (M, 5); it is
-    called once, on the images stacked (:func:`stacked_images`: M = 8 N for a square map), so one
-    UAV's eight readings are one forward pass."""
+    actions mapped back to the map's. ``q_values`` reads a batch of observations → (M, 5). A
+    batch of several rows on one map reads each image apart (M = N): an image's rows share its
+    map, so rows of the same grid are read once (the agent's shared features; a batch's
+    episodes often fly the same first steps); otherwise — one UAV — once, on the images stacked
+    (:func:`stacked_images`: M = 8 N for a square map), its eight readings one forward pass. A
+    row's Q-values do not depend on its batch, so both give the same numbers."""
     n = int(np.shape(obs["coverage"])[0])
     group = symmetries_of(tuple(np.shape(obs["coverage"])[-2:]))
-    q = np.asarray(q_values(stacked_images(obs, group))).reshape(len(group), n, -1)
+    if n >= 2 and shares_one_map(obs):
+        q = np.stack([np.asarray(q_values(turn_observation(obs, s))) for s in group])
+    else:
+        q = np.asarray(q_values(stacked_images(obs, group))).reshape(len(group), n, -1)
     total = q[0][:, PERMUTATIONS[group[0]]]
     for image, symmetry in zip(q[1:], group[1:], strict=True):
         total = total + image[:, PERMUTATIONS[symmetry]]
