@@ -18,7 +18,7 @@ from cpp_mujoco.agent.map_pool import MapPool, MapwiseGuide
 from cpp_mujoco.agent.multi_map_env import MultiMapVectorEnv
 from cpp_mujoco.agent.multi_map_replay import MultiMapReplay
 from cpp_mujoco.agent.network import OBSTACLE_CHANNEL, observation_to_tensors
-from cpp_mujoco.agent.obstacle_input import _extent, used_cells, view_valid
+from cpp_mujoco.agent.obstacle_input import _extent, targets_in_view, used_cells, view_valid
 from cpp_mujoco.agent.policy import GreedyAgent
 from cpp_mujoco.agent.rules.finish_mask import finish_allowed, targets_in_reach
 from cpp_mujoco.agent.rules.revisit_mask import RevisitMemory
@@ -183,6 +183,26 @@ def test_the_moves_to_new_targets_see_past_obstacles_as_the_grid_does(size, seed
     five, _ = observation_to_tensors(plain.observation(), 75.0)
     six, _ = observation_to_tensors(plain.observation(), 75.0, obstacle_input=True)
     assert torch.equal(moves_to_unseen(six, CAP), moves_to_unseen(five, CAP))
+
+
+def test_a_batch_on_one_map_reads_its_view_table_once_and_sees_what_each_row_would(monkeypatch):
+    import cpp_mujoco.agent.obstacle_input as obstacle_input
+
+    obs = _city_flight(32, 5, n=30)
+    grid, _ = observation_to_tensors(obs, 75.0, obstacle_input=True)
+    unseen = grid[:, 1] > 0.5
+    other, _ = observation_to_tensors(_city_flight(32, 6, n=4), 75.0, obstacle_input=True)
+    obstacle = grid[:, OBSTACLE_CHANNEL] > 0.5
+    assert obstacle_input._one_map_valid(grid, obstacle, 3).shape == (1, 9, 32, 32)
+    both = torch.cat([grid, other])
+    assert obstacle_input._one_map_valid(both, both[:, OBSTACLE_CHANNEL] > 0.5, 3) is None
+    padded = torch.as_tensor(pad_grids(grid.numpy(), 40))
+    shared = [targets_in_view(g, g[:, 1] > 0.5, 3) for g in (grid, padded, both)]
+    with monkeypatch.context() as patch:  # every row its own table, as before
+        patch.setattr(obstacle_input, "_one_map_valid", lambda *args: None)
+        each = [targets_in_view(g, g[:, 1] > 0.5, 3) for g in (grid, padded, both)]
+    assert all(torch.equal(a, b) for a, b in zip(shared, each, strict=True))
+    assert shared[0].any() and not torch.equal(shared[0], unseen)
 
 
 def test_the_view_table_is_the_grids_and_generated_maps_are_read_at_their_extent():

@@ -124,6 +124,30 @@ def _square(unseen: torch.Tensor, side: int) -> torch.Tensor:
     return out.bool()
 
 
+_MAP_CHANNELS = [LANDING_CHANNEL, TARGET_CHANNEL, NFZ_CHANNEL, OBSTACLE_CHANNEL]
+
+
+def _one_map_valid(grid: torch.Tensor, obstacle: torch.Tensor, side: int) -> torch.Tensor | None:
+    """(1,side²,H,W): the one view table of a batch whose rows are all on one map (its layers
+    equal row by row, as a search's or a protocol's batch is), read once for every row; None
+    for a batch of several maps. A row's extent is its map's and its UAV's cell
+    (:func:`used_cells`), so one extent serves where every UAV is inside the map's."""
+    layers = grid[:, _MAP_CHANNELS]
+    if not bool((layers == layers[:1]).all()):
+        return None
+    first = grid[:1].clone()
+    first[:, POSITION_CHANNEL] = 0.0  # the map's own cells, without the UAV
+    ((rows, cols),) = _extent(used_cells(first))
+    at = grid[:, POSITION_CHANNEL].flatten(1)
+    cell = at.argmax(dim=1)
+    flown = at.amax(dim=1) > 0.5
+    w = grid.shape[-1]
+    if bool(((cell // w >= rows) | (cell % w >= cols))[flown].any()):
+        return None  # a UAV beyond the map's cells: rows of other extents
+    table = _view_tables(obstacle[:1].cpu().numpy(), [(rows, cols)], side)
+    return torch.from_numpy(table).to(grid.device)
+
+
 def targets_in_view(grid: torch.Tensor, unseen: torch.Tensor, side: int) -> torch.Tensor:
     """(B,H,W) bool: the cells whose side×side view (``side`` odd) holds an ``unseen`` (B,H,W)
     cell. Rows without obstacles take the square (:func:`_square`, bit for bit as before the
@@ -136,9 +160,11 @@ def targets_in_view(grid: torch.Tensor, unseen: torch.Tensor, side: int) -> torc
         return _square(unseen, side)
     rows = torch.nonzero(has).flatten()
     h, w = grid.shape[-2:]
-    extents = _extent(used_cells(grid[rows]))
-    tables = _view_tables(obstacle[rows].cpu().numpy(), extents, side)
-    valid = torch.from_numpy(tables).to(grid.device)  # (R,side²,H,W)
+    valid = _one_map_valid(grid, obstacle, side) if has.all() else None
+    if valid is None:
+        extents = _extent(used_cells(grid[rows]))
+        tables = _view_tables(obstacle[rows].cpu().numpy(), extents, side)
+        valid = torch.from_numpy(tables).to(grid.device)  # (R,side²,H,W)
     lo, hi = (side - 1) // 2, side // 2
     padded = F.pad(unseen[rows].to(torch.uint8), (lo, hi, lo, hi)).bool()
     seen = torch.zeros((rows.numel(), h, w), dtype=torch.bool, device=grid.device)
