@@ -91,7 +91,7 @@ def add_budget_step_option(p, default: int = 1, help: str | None = None) -> None
     p.add_argument(
         "--budget-step", type=int_at_least(1), default=default,
         help=help or "every n-th budget of each map's size class (16x16: 25..75, 32x32: "
-        "50..150), the largest always included (default: %(default)s, all)",
+        "50..150, 50x50: 150..250), the largest always included (default: %(default)s, all)",
     )  # fmt: skip
 
 
