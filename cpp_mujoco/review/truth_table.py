@@ -324,8 +324,9 @@ VALUE_BEAM_TEXT = (
     "The bundled general agent with its rules flown through the beam search its Q-values rank "
     "(`--agent general+value-beam`: 32 paths per episode, its own mission the fallback; `python "
     "scripts/results_flights.py value-beam --map-set SET`, results/value_beam_SET.json), beside "
-    "the same agent with its own rules and the planners, over the whole protocol; the sets flown "
-    "so far. This is the bundled general policy (`--agent general+value-beam`)."
+    "the same agent with its own rules and the planners, over the whole protocol (or the sample "
+    "of budgets a row names); the sets flown so far. This is the bundled general policy "
+    "(`--agent general+value-beam`)."
 )
 
 
