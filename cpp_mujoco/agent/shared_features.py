@@ -19,6 +19,7 @@ import torch
 
 from cpp_mujoco.agent.network import observation_scalars, observation_to_tensors
 from cpp_mujoco.grid.actions import NUM_ACTIONS
+from cpp_mujoco.grid.symmetry import shares_one_map
 
 BLOCK_CHUNKS = 16  # rows are matched within blocks of this many forward chunks (bounds memory)
 Observation = dict[str, np.ndarray]
@@ -43,7 +44,7 @@ def shared_q_values(agent, obs: Observation, step: int) -> np.ndarray | None:
     without :meth:`features`, rows on several maps, fewer than two rows)."""
     net = agent.network
     n = int(np.shape(obs["coverage"])[0])
-    if not hasattr(net, "features") or n < 2 or not _one_map(obs):
+    if not hasattr(net, "features") or n < 2 or not shares_one_map(obs):
         return None
     keys = _grid_keys(obs)
     out = np.empty((n, NUM_ACTIONS), dtype=np.float32)
@@ -76,19 +77,6 @@ def _grid(agent, obs: Observation, rows: np.ndarray) -> torch.Tensor:
         part, agent.budget_scale, agent.device, net.wind_inputs, False, agent.reads_obstacles
     )
     return grid
-
-
-def _one_map(obs: Observation) -> bool:
-    """Every row holds one map (and obstacle layer): the observation shares it, whole or as a
-    broadcast of one row."""
-    for key, whole in (("map", 3), ("obstacle", 2)):
-        value = obs.get(key)
-        if value is None or np.ndim(value) == whole:
-            continue
-        value = np.asarray(value)
-        if not (value.shape[0] and value.strides[0] == 0):
-            return False
-    return True
 
 
 def _grid_keys(obs: Observation) -> np.ndarray:
